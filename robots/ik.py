@@ -1,0 +1,437 @@
+"""Fast numerical inverse kinematics on Pinocchio.
+
+Damped least squares (Levenberg-Marquardt) on the tool frame's position and
+orientation error, joint limits enforced by clamping each step, random restarts
+inside the limits when an attempt stalls, and a wall-clock budget. A result
+always comes back, never an exception for an unsolved target: its status says
+``success``, ``unreachable`` (outside the arm's reach, or no solution even
+without joint limits), ``joint_limits`` (solvable only outside the limits),
+``collision`` (solutions exist but collide) or ``not_converged``.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from robots.errors import InvalidConfiguration
+from robots.model import ARM_JOINTS, TORSO_JOINT, Arm, FloatArray, KinematicChain
+
+#: Default convergence tolerances: position [m] and orientation [rad].
+POSITION_TOLERANCE_M = 1e-6
+ORIENTATION_TOLERANCE_RAD = 1e-6
+
+
+class IKStatus(enum.Enum):
+    """Outcome of an IK request."""
+
+    SUCCESS = "success"
+    UNREACHABLE = "unreachable"
+    JOINT_LIMITS = "joint_limits"
+    COLLISION = "collision"
+    NOT_CONVERGED = "not_converged"
+
+
+@dataclass(frozen=True)
+class IKTarget:
+    """A tool-frame target in the chain's world frame.
+
+    Attributes:
+        position_m: tool origin in world [m], shape (3,).
+        rotation: tool-to-world rotation matrix (3x3); ``None`` for position only.
+    """
+
+    position_m: FloatArray
+    rotation: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        pos = np.asarray(self.position_m, dtype=np.float64)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise InvalidConfiguration(f"target position_m must be 3 finite values [m], got {pos}")
+        object.__setattr__(self, "position_m", pos)
+        if self.rotation is not None:
+            rot = np.asarray(self.rotation, dtype=np.float64)
+            if rot.shape != (3, 3) or not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6):
+                raise InvalidConfiguration(
+                    f"target rotation must be a 3x3 rotation matrix, got {rot}"
+                )
+            object.__setattr__(self, "rotation", rot)
+
+    @classmethod
+    def from_transform(cls, transform_tool_to_world: pin.SE3) -> IKTarget:
+        """A full-pose target from a Pinocchio placement."""
+        return cls(
+            np.array(transform_tool_to_world.translation),
+            np.array(transform_tool_to_world.rotation),
+        )
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """What an IK request returned.
+
+    Attributes:
+        status: the outcome; ``success`` only if within tolerance, limits and collision-free.
+        coordinates: chain coordinates [m, rad] of the best configuration found
+            (the solution on success), or ``None`` if none was computed.
+        position_error_m / orientation_error_rad: residual of ``coordinates``.
+        iterations / restarts: work done.
+        time_s: wall-clock time [s].
+        message: a human-readable reason.
+    """
+
+    status: IKStatus
+    coordinates: FloatArray | None
+    position_error_m: float
+    orientation_error_rad: float
+    iterations: int
+    restarts: int
+    time_s: float
+    message: str = ""
+
+    @property
+    def success(self) -> bool:
+        """Whether the target was reached within tolerance, limits and collision-free."""
+        return self.status is IKStatus.SUCCESS
+
+
+CollisionCheck = Callable[[KinematicChain, FloatArray], bool]
+
+
+@dataclass
+class IKSolver:
+    """Damped-least-squares IK for one arm of one chain.
+
+    Keyword-only construction; ``seed`` seeds the restart sampler held by the solver.
+
+    Attributes:
+        chain: the kinematic chain (its locked joints fix the rest of the robot).
+        arm: which tool frame to drive.
+        seed: seed of the solver's random restarts.
+        time_budget_s: wall-clock budget per request [s].
+        max_iterations_per_attempt: iterations before a restart.
+        damping: Levenberg-Marquardt damping added to ``J J^T`` (scaled by the error).
+        max_step_rad: largest coordinate change per iteration [rad or m].
+    """
+
+    chain: KinematicChain
+    arm: Arm
+    seed: int = 0
+    time_budget_s: float = 0.005
+    max_iterations_per_attempt: int = 40
+    damping: float = 1e-3
+    max_step_rad: float = 0.6
+    position_tolerance_m: float = POSITION_TOLERANCE_M
+    orientation_tolerance_rad: float = ORIENTATION_TOLERANCE_RAD
+    rng: np.random.Generator = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.rng = np.random.default_rng(self.seed)
+        self._fid = self.chain.tool_frame_id(self.arm)
+        self._model = self.chain.model
+        self._data = self._model.createData()
+        self._has_planar = self.chain.has_base
+        self._sample_low = np.where(
+            np.isfinite(self.chain.lower_limits), self.chain.lower_limits, -np.pi
+        )
+        self._sample_high = np.where(
+            np.isfinite(self.chain.upper_limits), self.chain.upper_limits, np.pi
+        )
+        self._reach = _ReachBound.build(self.chain, self.arm)
+
+    def midpoint(self) -> FloatArray:
+        """Coordinates midway between the limits (0 for unlimited ones) [m, rad]."""
+        low, high = self.chain.lower_limits, self.chain.upper_limits
+        finite = np.isfinite(low) & np.isfinite(high)
+        return np.where(
+            finite, 0.5 * (np.where(finite, low, 0.0) + np.where(finite, high, 0.0)), 0.0
+        )
+
+    def _residual(self, theta: FloatArray, target: IKTarget) -> tuple[FloatArray, FloatArray]:
+        """Error (6 or 3,) and Jacobian w.r.t. the coordinates at ``theta``."""
+        q = self.chain.q_from_coordinates(theta)
+        jac = pin.computeFrameJacobian(
+            self._model, self._data, q, self._fid, pin.LOCAL_WORLD_ALIGNED
+        )
+        placement = self._data.oMf[self._fid]
+        if self._has_planar:
+            jac = jac @ self.chain.velocity_from_coordinate_rates(theta)
+        err_p = target.position_m - placement.translation
+        if target.rotation is None:
+            return err_p, jac[:3]
+        err_o = pin.log3(target.rotation @ placement.rotation.T)
+        return np.concatenate([err_p, err_o]), jac
+
+    def _converged(self, err: FloatArray) -> bool:
+        if np.linalg.norm(err[:3]) > self.position_tolerance_m:
+            return False
+        return err.shape[0] == 3 or bool(np.linalg.norm(err[3:]) <= self.orientation_tolerance_rad)
+
+    def _attempt(
+        self,
+        theta: FloatArray,
+        target: IKTarget,
+        free: FloatArray,
+        low: FloatArray,
+        high: FloatArray,
+        deadline: float,
+    ) -> tuple[FloatArray, FloatArray, int, bool]:
+        """One damped-least-squares descent; returns (theta, error, iterations, converged)."""
+        best_norm = np.inf
+        stall = 0
+        eye = np.eye(3 if target.rotation is None else 6)
+        for iteration in range(1, self.max_iterations_per_attempt + 1):
+            err, jac = self._residual(theta, target)
+            if self._converged(err):
+                return theta, err, iteration, True
+            norm = float(err @ err)
+            if norm < 0.999 * best_norm:
+                best_norm, stall = norm, 0
+            else:
+                stall += 1
+                if stall >= 4:
+                    return theta, err, iteration, False
+            if time.perf_counter() > deadline:
+                return theta, err, iteration, False
+            # active set: drop coordinates resting on a limit that the step pushes past
+            active = free.copy()
+            damping = (self.damping * norm + 1e-12) * eye
+            for attempt in range(4):
+                jac_active = jac[:, active]
+                step = jac_active.T @ np.linalg.solve(jac_active @ jac_active.T + damping, err)
+                if attempt == 3:
+                    break
+                moved = theta[active] + step
+                blocked = ((moved < low[active]) & (theta[active] <= low[active] + 1e-12)) | (
+                    (moved > high[active]) & (theta[active] >= high[active] - 1e-12)
+                )
+                if not blocked.any():
+                    break
+                indices = np.flatnonzero(active)
+                active[indices[blocked]] = False
+                if not active.any():
+                    return theta, err, iteration, False
+            largest = np.max(np.abs(step))
+            if largest > self.max_step_rad:
+                step *= self.max_step_rad / largest
+            theta = theta.copy()
+            theta[active] = np.clip(theta[active] + step, low[active], high[active])
+        err, _ = self._residual(theta, target)
+        return theta, err, self.max_iterations_per_attempt, self._converged(err)
+
+    def solve(
+        self,
+        target: IKTarget,
+        *,
+        initial: FloatArray | None = None,
+        fixed: Mapping[str, float] | None = None,
+        collides: CollisionCheck | None = None,
+        time_budget_s: float | None = None,
+        diagnose: bool = True,
+    ) -> IKResult:
+        """Solve for the chain coordinates that put the tool frame on ``target``.
+
+        Args:
+            target: tool target in world.
+            initial: starting coordinates; the midpoint of the limits by default.
+            fixed: coordinates held at a value, e.g. ``{"torso_lift_joint": 0.1}`` [m, rad].
+            collides: optional check; a converged configuration that collides is rejected.
+            time_budget_s: overrides the solver's budget [s].
+            diagnose: on failure, spend a little more time to tell ``joint_limits``
+                from ``unreachable``.
+        """
+        start = time.perf_counter()
+        budget = self.time_budget_s if time_budget_s is None else time_budget_s
+        deadline = start + budget
+        chain = self.chain
+        low, high = chain.lower_limits.copy(), chain.upper_limits.copy()
+        theta = self.midpoint() if initial is None else chain.check_coordinates(initial).copy()
+        free = np.ones(chain.n_coordinates, dtype=bool)
+        for name, value in (fixed or {}).items():
+            index = chain.coordinate_index(name)
+            free[index] = False
+            theta[index] = value
+            low[index] = high[index] = value
+        theta = np.clip(theta, low, high)
+
+        if not self._reach.may_reach(target, low, high, chain):
+            return IKResult(
+                IKStatus.UNREACHABLE,
+                None,
+                np.inf,
+                np.inf,
+                0,
+                0,
+                time.perf_counter() - start,
+                "the target is farther from the shoulder than the arm's length",
+            )
+
+        iterations = restarts = 0
+        best: tuple[float, FloatArray, FloatArray] | None = None
+        saw_collision = False
+        while True:
+            theta, err, its, ok = self._attempt(theta, target, free, low, high, deadline)
+            iterations += its
+            theta = chain.normalise(theta)
+            if ok:
+                if collides is None or not collides(chain, theta):
+                    return self._result(
+                        IKStatus.SUCCESS, theta, err, iterations, restarts, start, ""
+                    )
+                saw_collision = True
+            score = float(err @ err)
+            if best is None or score < best[0]:
+                best = (score, theta, err)
+            if time.perf_counter() > deadline:
+                break
+            restarts += 1
+            theta = np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
+            if chain.has_base:
+                theta[:3] = np.where(free[:3], best[1][:3], theta[:3])
+
+        assert best is not None  # the loop runs at least once
+        _, theta, err = best
+        if saw_collision:
+            status, why = IKStatus.COLLISION, "every solution found collides with the scene"
+        elif diagnose and self._solvable_without_limits(target, theta, free):
+            status, why = IKStatus.JOINT_LIMITS, "solutions exist only outside the joint limits"
+        elif diagnose:
+            status, why = IKStatus.UNREACHABLE, "no solution found even without joint limits"
+        else:
+            status, why = IKStatus.NOT_CONVERGED, f"no solution within {budget * 1e3:.1f} ms"
+        return self._result(status, theta, err, iterations, restarts, start, why)
+
+    def _solvable_without_limits(
+        self, target: IKTarget, theta: FloatArray, free: FloatArray
+    ) -> bool:
+        inf = np.full_like(theta, np.inf)
+        low = np.where(free, -inf, theta)
+        high = np.where(free, inf, theta)
+        deadline = time.perf_counter() + 0.005
+        for attempt in range(4):
+            start = (
+                theta
+                if attempt == 0
+                else np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
+            )
+            _, _, _, ok = self._attempt(start, target, free, low, high, deadline)
+            if ok:
+                return True
+        return False
+
+    def _result(
+        self,
+        status: IKStatus,
+        theta: FloatArray,
+        err: FloatArray,
+        iterations: int,
+        restarts: int,
+        start: float,
+        message: str,
+    ) -> IKResult:
+        return IKResult(
+            status,
+            theta,
+            float(np.linalg.norm(err[:3])),
+            float(np.linalg.norm(err[3:])) if err.shape[0] == 6 else 0.0,
+            iterations,
+            restarts,
+            time.perf_counter() - start,
+            message,
+        )
+
+
+@dataclass(frozen=True)
+class _ReachBound:
+    """A cheap necessary condition for reachability: the wrist centre (pose targets)
+    or the tool (position targets) must lie within the arm's length of the shoulder
+    pan axis origin, which slides with the torso."""
+
+    shoulder_low_m: FloatArray | None
+    shoulder_high_m: FloatArray | None
+    torso_index: int | None
+    arm_length_m: float
+    wrist_offset_in_tool_m: FloatArray | None
+    tool_extra_m: float
+
+    @staticmethod
+    def build(chain: KinematicChain, arm: Arm) -> _ReachBound:
+        if chain.has_base:
+            return _ReachBound(None, None, None, np.inf, None, 0.0)
+        model = chain.model
+        names = ARM_JOINTS[arm]
+        ids = [model.getJointId(n) for n in names]
+        # sum of fixed offsets from the shoulder pan origin to the wrist flex origin
+        length = float(sum(np.linalg.norm(model.jointPlacements[j].translation) for j in ids[1:6]))
+        torso = (
+            chain.coordinate_names.index(TORSO_JOINT)
+            if TORSO_JOINT in chain.coordinate_names
+            else None
+        )
+        base = np.zeros(chain.n_coordinates)
+        low_theta, high_theta = base.copy(), base.copy()
+        if torso is not None:
+            low_theta[torso] = chain.lower_limits[torso]
+            high_theta[torso] = chain.upper_limits[torso]
+        origins_low = chain.joint_origins_world(low_theta)
+        origins_high = chain.joint_origins_world(high_theta)
+        pan = names[0]
+        # wrist flex origin expressed in the tool frame: constant if the wrist axes meet
+        rng = np.random.default_rng(0)
+        offsets = []
+        for _ in range(5):
+            theta = rng.uniform(
+                np.where(np.isfinite(chain.lower_limits), chain.lower_limits, -np.pi),
+                np.where(np.isfinite(chain.upper_limits), chain.upper_limits, np.pi),
+            )
+            tool = chain.transform_tool_to_world(arm, theta)
+            wrist = chain.joint_origins_world(theta)[names[5]]
+            offsets.append(tool.actInv(wrist))
+        spread = float(np.max(np.ptp(np.array(offsets), axis=0)))
+        wrist_offset = np.array(offsets[0]) if spread < 1e-9 else None
+        tool_extra = float(np.linalg.norm(offsets[0])) if wrist_offset is not None else 0.5
+        return _ReachBound(
+            origins_low[pan], origins_high[pan], torso, length, wrist_offset, tool_extra
+        )
+
+    def may_reach(
+        self, target: IKTarget, low: FloatArray, high: FloatArray, chain: KinematicChain
+    ) -> bool:
+        if self.shoulder_low_m is None or self.shoulder_high_m is None:
+            return True
+        a, b = self.shoulder_low_m, self.shoulder_high_m
+        if self.torso_index is not None:
+            span = chain.upper_limits[self.torso_index] - chain.lower_limits[self.torso_index]
+            t_lo = (low[self.torso_index] - chain.lower_limits[self.torso_index]) / span
+            t_hi = (high[self.torso_index] - chain.lower_limits[self.torso_index]) / span
+            a, b = a + t_lo * (self.shoulder_high_m - a), a + t_hi * (self.shoulder_high_m - a)
+        if target.rotation is not None and self.wrist_offset_in_tool_m is not None:
+            point = target.position_m + target.rotation @ self.wrist_offset_in_tool_m
+            reach = self.arm_length_m
+        else:
+            point = target.position_m
+            reach = self.arm_length_m + self.tool_extra_m
+        seg = b - a
+        denom = float(seg @ seg)
+        s = 0.0 if denom == 0.0 else float(np.clip((point - a) @ seg / denom, 0.0, 1.0))
+        return bool(np.linalg.norm(point - (a + s * seg)) <= reach + 1e-6)
+
+
+def solve_ik(
+    chain: KinematicChain,
+    arm: Arm,
+    target: IKTarget,
+    *,
+    seed: int = 0,
+    time_budget_s: float = 0.005,
+    fixed: Mapping[str, float] | None = None,
+    collides: CollisionCheck | None = None,
+) -> IKResult:
+    """One-shot IK (builds an :class:`IKSolver`; keep a solver to amortise set-up)."""
+    solver = IKSolver(chain=chain, arm=arm, seed=seed, time_budget_s=time_budget_s)
+    return solver.solve(target, fixed=fixed, collides=collides)

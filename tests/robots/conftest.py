@@ -1,0 +1,12 @@
+"""Shared fixtures for the robot tests (loaded once per session)."""
+
+from __future__ import annotations
+
+import pytest
+
+from robots.model import RobotModel, load_pr2
+
+
+@pytest.fixture(scope="session")
+def pr2() -> RobotModel:
+    return load_pr2()
