@@ -1,0 +1,324 @@
+"""The FSA model: frozen dataclasses for states and automata, with validation.
+
+An FSA is the paper's quadruple (actions, outcomes, transition on outcome, start state): each
+:class:`State` runs one skill with fixed parameters, and maps each outcome of that skill to the
+next state or to a *terminal outcome* that ends the run (``success`` / ``failure`` by
+default). A run that takes more than ``step_limit`` transitions ends with ``timeout``.
+
+Structure is checked when an :class:`FSA` is built (the start exists, every target exists);
+what depends on the skills (every outcome routed, parameters in range) is checked against a
+:class:`~skillcompose.registry.Registry` by :meth:`FSA.check` / :meth:`FSA.validate`, which
+compiling and loading do for you.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import deque
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .errors import FSAValidationError, ParamError, Problem, UnknownSkillError
+
+if TYPE_CHECKING:
+    from .registry import Registry
+
+__all__ = [
+    "DEFAULT_STEP_LIMIT",
+    "DEFAULT_TERMINALS",
+    "ERROR",
+    "FSA",
+    "PREEMPTED",
+    "RESERVED_OUTCOMES",
+    "TIMEOUT",
+    "Source",
+    "State",
+]
+
+TIMEOUT = "timeout"
+ERROR = "error"
+PREEMPTED = "preempted"
+RESERVED_OUTCOMES = (TIMEOUT, ERROR, PREEMPTED)
+DEFAULT_TERMINALS = ("success", "failure")
+DEFAULT_STEP_LIMIT = 100
+
+
+@dataclass(frozen=True)
+class State:
+    """One state: a skill, its parameters (in the skill's units) and its transitions."""
+
+    skill: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+    transitions: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where an FSA was read from, to point errors at lines and to save edits in place."""
+
+    path: str | None
+    positions: Mapping[tuple[str, ...], tuple[int, int]] = field(default_factory=dict)
+    document: Any = None  # the round-trip YAML document (comments, order, formatting)
+    renames: Mapping[str, str] = field(default_factory=dict)  # old state name -> new
+
+    def where(self, *keys: str) -> tuple[int | None, int | None]:
+        """1-based (line, column) of the deepest known key on the path ``keys``."""
+        for n in range(len(keys), -1, -1):
+            pos = self.positions.get(tuple(keys[:n]))
+            if pos is not None:
+                return pos
+        return None, None
+
+
+@dataclass(frozen=True)
+class FSA:
+    """A finite state automaton over named skills."""
+
+    states: Mapping[str, State]
+    start: str
+    terminals: tuple[str, ...] = DEFAULT_TERMINALS
+    step_limit: int = DEFAULT_STEP_LIMIT
+    name: str = ""
+    meta: Mapping[str, Any] = field(default_factory=dict)
+    source: Source | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "terminals", tuple(self.terminals))
+        problems = self.structure_problems()
+        if problems:
+            raise FSAValidationError(problems, self.path)
+
+    # -- identity ----------------------------------------------------------------------------
+    @property
+    def path(self) -> str | None:
+        return self.source.path if self.source is not None else None
+
+    def _problem(
+        self, message: str, state: str | None = None, key: str | None = None,
+        fix: str | None = None, at: tuple[str, ...] = (),
+    ) -> Problem:
+        line = col = None
+        if self.source is not None:
+            line, col = self.source.where(*at)
+        return Problem(message, state=state, key=key, fix=fix, line=line, column=col)
+
+    # -- validation ------------------------------------------------------------------------
+    def structure_problems(self) -> list[Problem]:
+        """Problems visible without knowing the skills."""
+        out: list[Problem] = []
+        if not isinstance(self.step_limit, int) or isinstance(self.step_limit, bool) or \
+                self.step_limit < 1:
+            out.append(self._problem(
+                f"step_limit must be a positive whole number, got {self.step_limit!r}",
+                fix="set `step_limit: 20` (the paper's value)", at=("step_limit",),
+            ))
+        if not self.terminals:
+            out.append(self._problem(
+                "no terminal outcomes", fix="set `terminals: [success, failure]`",
+                at=("terminals",),
+            ))
+        for t in self.terminals:
+            if not isinstance(t, str) or not t.isidentifier():
+                out.append(self._problem(
+                    f"terminal outcome {t!r} must be an identifier", at=("terminals",)
+                ))
+            elif t in RESERVED_OUTCOMES:
+                out.append(self._problem(
+                    f"terminal outcome {t!r} is reserved for the executor "
+                    f"({', '.join(RESERVED_OUTCOMES)})", at=("terminals",),
+                ))
+        if not self.states:
+            out.append(self._problem(
+                "the FSA has no states", fix="add at least one state under `states:`",
+                at=("states",),
+            ))
+        if self.start not in self.states:
+            out.append(self._problem(
+                f"start state {self.start!r} does not exist",
+                fix=f"set `start:` to one of {list(self.states)[:8]}", at=("start",),
+            ))
+        for sname, st in self.states.items():
+            if not isinstance(sname, str) or not sname or any(c.isspace() for c in sname):
+                out.append(self._problem(
+                    f"state name {sname!r} must be a non-empty string without spaces",
+                    state=str(sname), at=("states", str(sname)),
+                ))
+                continue
+            if sname in self.terminals or sname in RESERVED_OUTCOMES:
+                out.append(self._problem(
+                    f"a state cannot be named {sname!r}: that is a terminal outcome",
+                    state=sname, fix="rename the state", at=("states", sname),
+                ))
+            for outcome, target in st.transitions.items():
+                if target not in self.states and target not in self.terminals:
+                    out.append(self._problem(
+                        f"outcome {outcome!r} goes to {target!r}, which is neither a state "
+                        f"nor a terminal outcome {list(self.terminals)}",
+                        state=sname, key=outcome,
+                        fix=_fix_target(target, list(self.states), self.terminals),
+                        at=("states", sname, "transitions", outcome),
+                    ))
+        return out
+
+    def check(self, registry: Registry) -> list[Problem]:
+        """Problems of this FSA against the skills of ``registry`` (empty when valid)."""
+        out: list[Problem] = []
+        for sname, st in self.states.items():
+            base = ("states", sname)
+            try:
+                spec = registry.spec(st.skill)
+            except UnknownSkillError as exc:
+                out.append(self._problem(
+                    str(exc), state=sname, key="skill", at=(*base, "skill"),
+                ))
+                continue
+            for outcome in spec.outcomes:
+                if outcome not in st.transitions:
+                    out.append(self._problem(
+                        f"outcome {outcome!r} of skill {spec.name} has no transition",
+                        state=sname, key=outcome,
+                        fix=f"add `{outcome}: <state or {'/'.join(self.terminals)}>` "
+                        f"under {sname}.transitions",
+                        at=(*base, "transitions"),
+                    ))
+            for outcome in st.transitions:
+                if outcome not in spec.outcomes:
+                    out.append(self._problem(
+                        f"{outcome!r} is not an outcome of skill {spec.name} "
+                        f"(its outcomes are {list(spec.outcomes)})",
+                        state=sname, key=outcome,
+                        fix=f"remove it or rename it to one of {list(spec.outcomes)}",
+                        at=(*base, "transitions", outcome),
+                    ))
+            for pname, value in st.params.items():
+                try:
+                    spec.param(pname).check(value)
+                except ParamError as exc:
+                    msg = str(exc)
+                    out.append(self._problem(
+                        f"skill {spec.name}: {msg}", state=sname, key=pname,
+                        at=(*base, "params", pname),
+                    ))
+        return out
+
+    def validate(self, registry: Registry) -> FSA:
+        """Raise :class:`FSAValidationError` listing every problem; return ``self`` if none."""
+        problems = self.check(registry)
+        if problems:
+            raise FSAValidationError(problems, self.path)
+        return self
+
+    # -- graph queries ---------------------------------------------------------------------
+    def successors(self, state: str) -> list[str]:
+        return [t for t in self.states[state].transitions.values() if t in self.states]
+
+    def reachable(self) -> list[str]:
+        """States reachable from the start, in breadth-first order."""
+        seen = {self.start}
+        order = [self.start]
+        queue = deque(order)
+        while queue:
+            s = queue.popleft()
+            for t in self.successors(s):
+                if t not in seen:
+                    seen.add(t)
+                    order.append(t)
+                    queue.append(t)
+        return order
+
+    def unreachable(self) -> list[str]:
+        reach = set(self.reachable())
+        return [s for s in self.states if s not in reach]
+
+    def pruned(self) -> FSA:
+        """This FSA without the states the start cannot reach."""
+        reach = set(self.reachable())
+        return self.replace(states={k: v for k, v in self.states.items() if k in reach})
+
+    def skills_used(self) -> list[str]:
+        return sorted({st.skill for st in self.states.values()})
+
+    # -- editing (each returns a new FSA; a file's comments survive a later save) ---------------
+    def replace(self, **changes: Any) -> FSA:
+        return dataclasses.replace(self, **changes)
+
+    def with_params(self, state: str, **params: Any) -> FSA:
+        st = self._state(state)
+        new = State(st.skill, {**st.params, **params}, st.transitions)
+        return self.replace(states={**self.states, state: new})
+
+    def route(self, state: str, outcome: str, target: str) -> FSA:
+        st = self._state(state)
+        new = State(st.skill, st.params, {**st.transitions, outcome: target})
+        return self.replace(states={**self.states, state: new})
+
+    def with_state(self, name: str, state: State) -> FSA:
+        return self.replace(states={**self.states, name: state})
+
+    def without_state(self, name: str) -> FSA:
+        self._state(name)
+        return self.replace(states={k: v for k, v in self.states.items() if k != name})
+
+    def rename_state(self, old: str, new: str) -> FSA:
+        """Rename a state and every transition (and the start) that points at it."""
+        self._state(old)
+        if new in self.states:
+            raise FSAValidationError([Problem(f"state {new!r} exists already", state=old)])
+        states: dict[str, State] = {}
+        for k, st in self.states.items():
+            tr = {o: (new if t == old else t) for o, t in st.transitions.items()}
+            states[new if k == old else k] = State(st.skill, st.params, tr)
+        source = self.source
+        if source is not None:
+            renames = {k: (new if v == old else v) for k, v in source.renames.items()}
+            if old not in source.renames.values():
+                renames[old] = new
+            source = dataclasses.replace(source, renames=renames)
+        return self.replace(
+            states=states, start=new if self.start == old else self.start, source=source
+        )
+
+    def _state(self, name: str) -> State:
+        try:
+            return self.states[name]
+        except KeyError:
+            raise FSAValidationError([Problem(
+                f"no state named {name!r}; states are {list(self.states)}"
+            )]) from None
+
+    # -- construction helpers --------------------------------------------------------------
+    @classmethod
+    def chain(
+        cls, skills: Iterable[str], *, registry: Registry | None = None,
+        on_other: str = "failure", step_limit: int = DEFAULT_STEP_LIMIT,
+        name: str = "",
+    ) -> FSA:
+        """A straight line of states: each ``success`` goes to the next, the last ends in
+        ``success``; every other outcome (known from ``registry``) ends in ``on_other``."""
+        names = list(skills)
+        states: dict[str, State] = {}
+        labels = [f"{s}_{i + 1}" for i, s in enumerate(names)]
+        for i, s in enumerate(names):
+            nxt = labels[i + 1] if i + 1 < len(names) else "success"
+            outs = registry.spec(s).outcomes if registry is not None else ("success",)
+            tr = {o: (nxt if o == "success" else on_other) for o in outs}
+            states[labels[i]] = State(s, {}, tr)
+        return cls(states, labels[0], step_limit=step_limit, name=name)
+
+
+def _fix_target(target: str, states: list[str], terminals: tuple[str, ...]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(str(target), states + list(terminals), n=1)
+    if close:
+        return f"did you mean {close[0]!r}?"
+    return f"use a state name or one of {list(terminals)}"
+
+
+def load(path: str | Path) -> FSA:
+    """Shorthand for :func:`skillcompose.fsafile.load_fsa`."""
+    from .fsafile import load_fsa
+
+    return load_fsa(path)

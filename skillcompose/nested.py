@@ -1,0 +1,101 @@
+"""FSAs as skills: how an evolved FSA becomes an action of a new one (the paper's 4.3).
+
+The nested FSA runs on the caller's blackboard with the caller's random generator; its
+terminal outcomes are the skill's outcomes. It is compiled lazily, once per backend, with the
+registry it was registered in, so swapping a backend swaps it inside the nested FSA as well.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .blackboard import Blackboard
+from .errors import RegistryError
+from .fsa import FSA, TIMEOUT
+from .skill import Skill, SkillFn, SkillSpec
+
+if TYPE_CHECKING:
+    from .executor import CompiledFSA
+    from .registry import Registry
+
+__all__ = ["FSASkill", "fsa_skill"]
+
+
+class FSASkill(Skill):
+    """A skill whose implementation is an FSA."""
+
+    __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
+
+    def __init__(
+        self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str
+    ) -> None:
+        super().__init__(spec, None, backend="default")
+        self.fsa = fsa
+        self.registry = registry
+        self.timeout_outcome = timeout_outcome
+        self._compiled: dict[str, CompiledFSA] = {}
+
+    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
+        from .executor import compile_fsa
+
+        be = backend or self.registry.backend
+        child = self._compiled.get(be)
+        if child is None:
+            child = compile_fsa(self.fsa, self.registry, be)
+            self._compiled[be] = child
+        timeout_outcome = self.timeout_outcome
+        run = child.outcome
+
+        def run_nested(bb: Blackboard, rng: np.random.Generator) -> str:
+            outcome, _ = run(bb, rng)
+            return timeout_outcome if outcome == TIMEOUT else outcome
+
+        run_nested.__qualname__ = run_nested.__name__ = f"fsa_{self.name}"
+        return run_nested
+
+
+def fsa_skill(
+    fsa: FSA | str | Path,
+    registry: Registry,
+    *,
+    name: str | None = None,
+    on_timeout: str | None = None,
+) -> FSASkill:
+    """Make a skill of ``fsa`` whose states' skills come from ``registry``."""
+    if not isinstance(fsa, FSA):
+        from .fsafile import load_fsa
+
+        fsa = load_fsa(fsa)
+    skill_name = name or fsa.name
+    if not skill_name or not skill_name.isidentifier():
+        raise RegistryError(
+            f"an FSA registered as a skill needs an identifier name, got {skill_name!r}; "
+            "set `name:` in the file or pass name=..."
+        )
+    fsa.validate(registry)
+    outcomes = list(fsa.terminals)
+    if on_timeout is None:
+        on_timeout = "failure" if "failure" in outcomes else TIMEOUT
+    if on_timeout not in outcomes:
+        outcomes.append(on_timeout)
+    reads: set[str] = set()
+    writes: set[str] = set()
+    key_types: dict[str, Any] = {}
+    for st in fsa.states.values():
+        spec = registry.spec(st.skill)
+        reads |= spec.reads
+        writes |= spec.writes
+        key_types.update(spec.key_types)
+    spec = SkillSpec(
+        name=skill_name,
+        outcomes=tuple(outcomes),
+        params=(),
+        reads=frozenset(reads),
+        writes=frozenset(writes),
+        key_types=key_types,
+        doc=f"FSA {skill_name} ({len(fsa.states)} states, start {fsa.start})",
+    )
+    return FSASkill(spec, fsa, registry, on_timeout)

@@ -1,0 +1,203 @@
+"""Skill parameters: their kind, range, unit, default and the search scale evolution uses.
+
+A skill declares its parameters as keyword-only arguments::
+
+    def move(bb, rng, *,
+             approach: Annotated[float, Param(0.05, 0.30, unit="m")] = 0.1,
+             arm: Literal["left", "right"] = "left",
+             tries: Annotated[int, Param(1, 5)] = 2,
+             careful: bool = False) -> Literal["success", "failure"]: ...
+
+Every parameter maps to and from the unit interval [0, 1] so that evolution can hold a genome
+of normalised numbers while files and users see values in the skill's own units.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from .errors import ParamError
+
+__all__ = ["Choice", "Param", "ParamKind", "ParamSpec", "Scale"]
+
+ParamKind = Literal["float", "int", "bool", "choice"]
+Scale = Literal["linear", "log"]
+
+
+@dataclass(frozen=True)
+class Param:
+    """Declaration of a numeric parameter's range, used inside ``Annotated[...]``.
+
+    ``low``/``high`` are inclusive bounds in the parameter's ``unit``. ``scale="log"`` makes
+    evolution search the range geometrically (both bounds must then be positive).
+    """
+
+    low: float
+    high: float
+    unit: str = ""
+    scale: Scale = "linear"
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Declaration of a categorical parameter: one of ``options`` (strings, numbers)."""
+
+    options: tuple[Any, ...]
+    doc: str = ""
+
+    def __init__(self, *options: Any, doc: str = "") -> None:
+        if len(options) == 1 and isinstance(options[0], (list, tuple)):
+            options = tuple(options[0])
+        object.__setattr__(self, "options", tuple(options))
+        object.__setattr__(self, "doc", doc)
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """A fully resolved parameter of a skill."""
+
+    name: str
+    kind: ParamKind
+    default: Any
+    low: float | None = None
+    high: float | None = None
+    unit: str = ""
+    scale: Scale = "linear"
+    choices: tuple[Any, ...] = field(default=())
+    doc: str = ""
+
+    # -- checking -------------------------------------------------------------------------
+    def describe_range(self) -> str:
+        if self.kind == "choice":
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.kind == "bool":
+            return "true or false"
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.kind} in [{self.low:g}, {self.high:g}]{unit}"
+
+    def check(self, value: Any, where: str = "") -> Any:
+        """Return ``value`` as this parameter's Python type, or raise :class:`ParamError`."""
+        prefix = f"{where}: " if where else ""
+        bad = (
+            f"{prefix}parameter {self.name!r} = {value!r} is not valid; "
+            f"expected {self.describe_range()}"
+        )
+        if self.kind == "bool":
+            if isinstance(value, bool):
+                return value
+            raise ParamError(bad + "; write true or false")
+        if self.kind == "choice":
+            for c in self.choices:
+                if value == c and type(value) is type(c):
+                    return c
+            raise ParamError(bad)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ParamError(bad + " (a number)")
+        if self.kind == "int":
+            if isinstance(value, float):
+                if not value.is_integer():
+                    raise ParamError(bad + " (a whole number)")
+                value = int(value)
+        else:
+            value = float(value)
+            if math.isnan(value):
+                raise ParamError(bad + " (not NaN)")
+        assert self.low is not None and self.high is not None
+        if not (self.low <= value <= self.high):
+            raise ParamError(
+                bad + f"; set it between {self.low:g} and {self.high:g}"
+                " or widen the skill's declared range"
+            )
+        return value
+
+    # -- the unit interval used by evolution ----------------------------------------------
+    def from_unit(self, x: float) -> Any:
+        """Map ``x`` in [0, 1] (clipped) to a value of this parameter."""
+        x = 0.0 if x < 0.0 else 1.0 if x > 1.0 else float(x)
+        if self.kind == "bool":
+            return x >= 0.5
+        if self.kind == "choice":
+            n = len(self.choices)
+            return self.choices[min(int(x * n), n - 1)]
+        assert self.low is not None and self.high is not None
+        if self.scale == "log":
+            v = math.exp(math.log(self.low) + x * (math.log(self.high) - math.log(self.low)))
+        else:
+            v = self.low + x * (self.high - self.low)
+        v = min(max(v, self.low), self.high)
+        if self.kind == "int":
+            return int(min(max(round(v), math.ceil(self.low)), math.floor(self.high)))
+        return v
+
+    def to_unit(self, value: Any) -> float:
+        """Map a value of this parameter to [0, 1] (inverse of :meth:`from_unit`)."""
+        if self.kind == "bool":
+            return 0.75 if value else 0.25
+        if self.kind == "choice":
+            n = len(self.choices)
+            return (self.choices.index(value) + 0.5) / n
+        assert self.low is not None and self.high is not None
+        if self.high == self.low:
+            return 0.5
+        if self.scale == "log":
+            u = (math.log(value) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
+        else:
+            u = (float(value) - self.low) / (self.high - self.low)
+        return min(max(u, 0.0), 1.0)
+
+
+def make_param_spec(
+    name: str, base_type: Any, decl: Param | Choice | None, default: Any, owner: str
+) -> ParamSpec:
+    """Build a :class:`ParamSpec` from a signature entry; raise ``ParamError`` if unusable."""
+    from typing import get_args, get_origin
+
+    where = f"skill {owner}, parameter {name!r}"
+    if isinstance(decl, Choice) or get_origin(base_type) is Literal:
+        options: Sequence[Any] = decl.options if isinstance(decl, Choice) else get_args(base_type)
+        if not options:
+            raise ParamError(f"{where}: a choice needs at least one option")
+        spec = ParamSpec(
+            name, "choice", default, choices=tuple(options),
+            doc=decl.doc if isinstance(decl, Choice) else "",
+        )
+    elif base_type is bool or (decl is None and isinstance(default, bool)):
+        spec = ParamSpec(name, "bool", default, doc="")
+    elif isinstance(decl, Param):
+        kind: ParamKind
+        if base_type is int or (base_type is None and isinstance(default, int)):
+            kind = "int"
+        else:
+            kind = "float"
+        if not decl.low <= decl.high:
+            raise ParamError(f"{where}: low {decl.low} is above high {decl.high}")
+        if decl.scale == "log" and decl.low <= 0:
+            raise ParamError(f"{where}: scale='log' needs a positive low bound, got {decl.low}")
+        if decl.scale not in ("linear", "log"):
+            raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
+        spec = ParamSpec(
+            name, kind, default, low=float(decl.low), high=float(decl.high),
+            unit=decl.unit, scale=decl.scale, doc=decl.doc,
+        )
+    else:
+        raise ParamError(
+            f"{where}: has no range; declare it as "
+            f"`{name}: Annotated[float, Param(low, high, unit=...)] = default`, "
+            "a Literal[...] / Choice(...) of options, or a bool"
+        )
+    if default is _MISSING:
+        raise ParamError(f"{where}: needs a default value (evolution and files may omit it)")
+    spec = ParamSpec(**{**spec.__dict__, "default": spec.check(default, f"skill {owner}")})
+    return spec
+
+
+class _Missing:
+    def __repr__(self) -> str:
+        return "<missing>"
+
+
+_MISSING: Any = _Missing()

@@ -1,0 +1,228 @@
+"""The registry: which skills an FSA may name, and which implementation (backend) runs.
+
+A :class:`Registry` is an instance; nothing registers itself globally. One skill name may
+have several implementations, one per *backend* (``"sim"``, ``"kinematic"``...), all with the
+same outcomes and parameters. An FSA file names skills only; the caller picks the backend
+when it compiles or runs the FSA, so one file runs on any backend.
+
+Skills are collected from Python modules (a dotted name or a ``.py`` path): a module either
+defines ``register(registry)`` or has its :class:`~skillcompose.skill.Skill` objects picked
+up from its top level. Installed packages advertise modules in the ``skillcompose.skills``
+entry-point group.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+from collections.abc import Iterable, Iterator
+from importlib import metadata
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+from .errors import RegistryError, UnknownSkillError
+from .skill import Skill, SkillSpec
+
+if TYPE_CHECKING:
+    from .fsa import FSA
+
+__all__ = ["DEFAULT_BACKEND", "ENTRY_POINT_GROUP", "Registry"]
+
+DEFAULT_BACKEND = "default"
+ENTRY_POINT_GROUP = "skillcompose.skills"
+
+
+class Registry:
+    """Maps skill names to their implementations, one per backend."""
+
+    def __init__(self, skills: Iterable[Skill] = (), *, backend: str = DEFAULT_BACKEND) -> None:
+        self._impls: dict[str, dict[str, Skill]] = {}
+        self.backend = backend
+        for s in skills:
+            self.add(s)
+
+    # -- adding ------------------------------------------------------------------------------
+    def add(self, s: Skill, *, backend: str | None = None, replace: bool = False) -> Skill:
+        """Add one implementation; ``backend`` overrides the skill's own label."""
+        if not isinstance(s, Skill):
+            raise RegistryError(
+                f"registry.add() takes a Skill made by @skill, got {type(s).__name__}"
+            )
+        label = backend or s.backend
+        if backend is not None and backend != s.backend:
+            s = Skill(s.spec, s.impl, backend=backend, is_class=s.is_class)
+        impls = self._impls.setdefault(s.name, {})
+        for other in impls.values():
+            if not s.spec.same_signature(other.spec):
+                raise RegistryError(
+                    f"skill {s.name}: backend {label!r} declares outcomes "
+                    f"{list(s.spec.outcomes)} and parameters {_sig(s.spec)}, but backend "
+                    f"{other.backend!r} declares {list(other.spec.outcomes)} and "
+                    f"{_sig(other.spec)}; every backend of a skill needs the same signature"
+                )
+        if label in impls and impls[label] is not s and not replace:
+            raise RegistryError(
+                f"skill {s.name} already has a {label!r} implementation; "
+                "pass replace=True to swap it"
+            )
+        impls[label] = s
+        return s
+
+    def add_fsa(
+        self, fsa: FSA | str | Path, *, name: str | None = None, on_timeout: str | None = None
+    ) -> Skill:
+        """Register an FSA (in memory or a file) as a skill of other FSAs.
+
+        Its terminal outcomes become the skill's outcomes; it shares the caller's blackboard
+        and random generator. ``on_timeout`` names the outcome its timeout maps to (default:
+        ``"failure"`` when that is a terminal, else a ``timeout`` outcome is added).
+        """
+        from .nested import fsa_skill
+
+        s = fsa_skill(fsa, self, name=name, on_timeout=on_timeout)
+        return self.add(s)
+
+    def load_module(self, target: str | ModuleType) -> list[Skill]:
+        """Import a module (dotted name, ``.py`` path, or FSA file) and add its skills."""
+        if isinstance(target, str) and target.endswith((".yaml", ".yml")):
+            return [self.add_fsa(target)]
+        module = target if isinstance(target, ModuleType) else import_target(target)
+        before = {(n, b) for n, impls in self._impls.items() for b in impls}
+        reg = getattr(module, "register", None)
+        if callable(reg) and not isinstance(reg, Skill):
+            reg(self)
+        else:
+            found = [v for v in vars(module).values() if isinstance(v, Skill)]
+            if not found:
+                raise RegistryError(
+                    f"module {module.__name__} defines no skills: decorate functions with "
+                    "@skill, or define register(registry)"
+                )
+            for s in found:
+                if s.backend not in self._impls.get(s.name, {}) or \
+                        self._impls[s.name][s.backend] is not s:
+                    self.add(s)
+        return [
+            self._impls[n][b]
+            for n, impls in self._impls.items()
+            for b in impls
+            if (n, b) not in before
+        ]
+
+    def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> list[Skill]:
+        """Add the skills of every installed package that advertises them in ``group``."""
+        added: list[Skill] = []
+        for ep in metadata.entry_points(group=group):
+            obj = ep.load()
+            if isinstance(obj, ModuleType):
+                added += self.load_module(obj)
+            elif callable(obj):
+                obj(self)
+            else:
+                raise RegistryError(
+                    f"entry point {ep.name} = {ep.value} in group {group} must be a module "
+                    "or a register(registry) function"
+                )
+        return added
+
+    @classmethod
+    def from_modules(
+        cls, targets: Iterable[str | ModuleType], *, backend: str = DEFAULT_BACKEND
+    ) -> Registry:
+        reg = cls(backend=backend)
+        for t in targets:
+            reg.load_module(t)
+        return reg
+
+    # -- looking up --------------------------------------------------------------------------
+    def __contains__(self, name: object) -> bool:
+        return name in self._impls
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._impls)
+
+    def __len__(self) -> int:
+        return len(self._impls)
+
+    def names(self) -> list[str]:
+        return list(self._impls)
+
+    def backends(self, name: str) -> list[str]:
+        return list(self._get_impls(name))
+
+    def spec(self, name: str) -> SkillSpec:
+        """The declaration shared by every backend of ``name``."""
+        return next(iter(self._get_impls(name).values())).spec
+
+    def resolve(self, name: str, backend: str | None = None) -> Skill:
+        """The implementation of ``name`` to run on ``backend``.
+
+        Looks for ``backend`` (default: this registry's backend), then ``"default"``, then
+        the only implementation when there is just one.
+        """
+        impls = self._get_impls(name)
+        want = backend or self.backend
+        if want in impls:
+            return impls[want]
+        if DEFAULT_BACKEND in impls:
+            return impls[DEFAULT_BACKEND]
+        if len(impls) == 1:
+            return next(iter(impls.values()))
+        raise UnknownSkillError(
+            f"skill {name} has no {want!r} implementation; it has {sorted(impls)}. "
+            f"Run with --backend one of {sorted(impls)}"
+        )
+
+    def _get_impls(self, name: str) -> dict[str, Skill]:
+        try:
+            return self._impls[name]
+        except KeyError:
+            raise UnknownSkillError(self.unknown_message(name)) from None
+
+    def unknown_message(self, name: str) -> str:
+        import difflib
+
+        close = difflib.get_close_matches(name, list(self._impls), n=3)
+        hint = f"; did you mean {' or '.join(close)}?" if close else ""
+        known = ", ".join(sorted(self._impls)) or "none (load skills with --skills MODULE)"
+        return f"unknown skill {name!r}{hint} Known skills: {known}"
+
+    def __repr__(self) -> str:
+        return f"Registry({sorted(self._impls)}, backend={self.backend!r})"
+
+
+def _sig(spec: SkillSpec) -> list[str]:
+    return [f"{p.name}: {p.describe_range()}" for p in spec.params]
+
+
+def import_target(target: str) -> ModuleType:
+    """Import a dotted module name or a ``.py`` file path."""
+    if target.endswith(".py") or "/" in target or "\\" in target:
+        path = Path(target)
+        if not path.is_file():
+            raise RegistryError(f"skills module file {target} does not exist")
+        mod_name = "_skillcompose_user_" + path.stem + f"_{abs(hash(str(path.resolve())))}"
+        if mod_name in sys.modules:
+            return sys.modules[mod_name]
+        spec = importlib.util.spec_from_file_location(mod_name, path)
+        if spec is None or spec.loader is None:
+            raise RegistryError(f"cannot import {target} as a Python module")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[mod_name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception:
+            del sys.modules[mod_name]
+            raise
+        return module
+    try:
+        return importlib.import_module(target)
+    except ModuleNotFoundError as exc:
+        if exc.name and target.startswith(exc.name):
+            raise RegistryError(
+                f"cannot import skills module {target!r}: {exc}. Give a dotted module "
+                "name importable from the current directory, or a path to a .py file"
+            ) from exc
+        raise

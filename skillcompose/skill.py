@@ -1,0 +1,349 @@
+"""Skills: the ``@skill`` decorator and what it produces.
+
+A skill is a function ``f(bb, rng, *, p1=..., p2=...) -> outcome`` (or a class whose instances
+are such callables, for skills with set-up or state). The decorator reads its declaration once
+and returns a :class:`Skill`, which holds an immutable :class:`SkillSpec` (name, outcomes,
+parameters, blackboard keys) and the implementation. The executor calls the implementation
+directly, so a skill costs one Python call per step and nothing more.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+import typing
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal, get_args, get_origin
+
+import numpy as np
+
+from .blackboard import Access, Blackboard
+from .errors import ParamError, SkillDefinitionError
+from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
+
+__all__ = ["Skill", "SkillFn", "SkillSpec", "skill"]
+
+SkillFn = Callable[..., str]
+"""``f(bb, rng, **params) -> outcome``."""
+
+KeyDecl = Iterable[str] | Mapping[str, type | tuple[type, ...]]
+
+
+@dataclass(frozen=True)
+class SkillSpec:
+    """What a skill promises: everything an FSA needs to know without running it."""
+
+    name: str
+    outcomes: tuple[str, ...]
+    params: tuple[ParamSpec, ...] = ()
+    reads: frozenset[str] = frozenset()
+    writes: frozenset[str] = frozenset()
+    key_types: Mapping[str, type | tuple[type, ...]] = field(default_factory=dict)
+    doc: str = ""
+
+    def param(self, name: str) -> ParamSpec:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise ParamError(
+            f"skill {self.name} has no parameter {name!r}; "
+            f"its parameters are {[p.name for p in self.params] or 'none'}"
+        )
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    def defaults(self) -> dict[str, Any]:
+        return {p.name: p.default for p in self.params}
+
+    def resolve_params(self, given: Mapping[str, Any], where: str = "") -> dict[str, Any]:
+        """Defaults overlaid with ``given``, each checked against its range."""
+        out = self.defaults()
+        where = where or f"skill {self.name}"
+        for k, v in given.items():
+            spec = None
+            for p in self.params:
+                if p.name == k:
+                    spec = p
+                    break
+            if spec is None:
+                raise ParamError(
+                    f"{where}: skill {self.name} has no parameter {k!r}; "
+                    f"its parameters are {list(self.param_names) or 'none'}"
+                )
+            out[k] = spec.check(v, where)
+        return out
+
+    def access(self) -> Access:
+        return Access(self.name, self.reads, self.writes)
+
+    def same_signature(self, other: SkillSpec) -> bool:
+        """True when two implementations are interchangeable in an FSA file."""
+        return (
+            self.outcomes == other.outcomes
+            and [(p.name, p.kind, p.low, p.high, p.choices) for p in self.params]
+            == [(p.name, p.kind, p.low, p.high, p.choices) for p in other.params]
+        )
+
+
+class Skill:
+    """A declared skill: its :class:`SkillSpec`, its implementation and its backend label.
+
+    Calling a ``Skill`` runs it once with the blackboard's access limited to its declared
+    keys, which is handy in tests: ``move_to_object(bb, rng, approach=0.2)``.
+    """
+
+    __slots__ = ("_instance", "backend", "impl", "is_class", "spec")
+
+    def __init__(
+        self, spec: SkillSpec, impl: Any, *, backend: str = "default", is_class: bool = False
+    ) -> None:
+        self.spec = spec
+        self.impl = impl
+        self.backend = backend
+        self.is_class = is_class
+        self._instance: Any = None
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
+        """The callable the executor runs: the function, or the class's one instance."""
+        if not self.is_class:
+            return typing.cast(SkillFn, self.impl)
+        if self._instance is None:
+            try:
+                self._instance = self.impl()
+            except Exception as exc:
+                raise SkillDefinitionError(
+                    f"skill {self.name}: creating its instance ({self.impl.__name__}()) "
+                    f"failed: {exc!r}"
+                ) from exc
+        return typing.cast(SkillFn, self._instance)
+
+    def __call__(
+        self, bb: Blackboard, rng: np.random.Generator | int | None = None, **params: Any
+    ) -> str:
+        """Run the skill once, outside an FSA, with its parameters checked."""
+        kwargs = self.spec.resolve_params(params)
+        if not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(rng)
+        prev = bb._client
+        bb._client = self.spec.access()
+        try:
+            out = self.bind()(bb, rng, **kwargs)
+        finally:
+            bb._client = prev
+        if out not in self.spec.outcomes:
+            from .errors import UndeclaredOutcomeError
+
+            raise UndeclaredOutcomeError(
+                f"skill {self.name} returned {out!r}, which is not one of its declared "
+                f"outcomes {list(self.spec.outcomes)}"
+            )
+        return typing.cast(str, out)
+
+    def __repr__(self) -> str:
+        return f"<Skill {self.name} [{self.backend}] outcomes={list(self.spec.outcomes)}>"
+
+
+def skill(
+    fn: Any = None,
+    *,
+    name: str | None = None,
+    outcomes: Iterable[str] | None = None,
+    reads: KeyDecl = (),
+    writes: KeyDecl = (),
+    backend: str = "default",
+) -> Any:
+    """Declare a skill.
+
+    Use as ``@skill`` or ``@skill(reads=(...), writes=(...), outcomes=(...), name=...,
+    backend=...)`` on a function ``f(bb, rng, *, params...) -> Literal[outcomes]`` or on a
+    class whose ``__call__`` has that signature (its ``__init__`` takes no arguments).
+
+    - ``name`` defaults to the function name in CamelCase (``move_to_object`` →
+      ``MoveToObject``), or the class name.
+    - ``outcomes`` defaults to the ``Literal[...]`` of the return annotation.
+    - ``reads`` / ``writes`` list blackboard keys, or map them to types.
+    - ``backend`` labels this implementation (``"sim"``, ``"kinematic"``, ...): a registry
+      may hold one implementation per backend under the same name.
+    """
+
+    def wrap(obj: Any) -> Skill:
+        return _make_skill(obj, name, outcomes, reads, writes, backend)
+
+    if fn is not None:
+        return wrap(fn)
+    return wrap
+
+
+_CAMEL = re.compile(r"(?:^|_)([a-z0-9])")
+
+
+def camel_name(name: str) -> str:
+    """``move_to_object`` → ``MoveToObject``; names already in CamelCase stay."""
+    if "_" not in name and name[:1].isupper():
+        return name
+    return _CAMEL.sub(lambda m: m.group(1).upper(), name)
+
+
+def _keys(decl: KeyDecl, what: str, owner: str) -> tuple[frozenset[str], dict[str, Any]]:
+    if isinstance(decl, str):
+        raise SkillDefinitionError(
+            f"skill {owner}: {what}={decl!r} is a string; write {what}=({decl!r},)"
+        )
+    types: dict[str, Any] = {}
+    if isinstance(decl, Mapping):
+        for k, t in decl.items():
+            if t is not None:
+                types[k] = t
+        keys = frozenset(decl)
+    else:
+        keys = frozenset(decl)
+    for k in keys:
+        if not isinstance(k, str) or not k:
+            raise SkillDefinitionError(f"skill {owner}: blackboard key {k!r} must be a string")
+    return keys, types
+
+
+def _make_skill(
+    obj: Any,
+    name: str | None,
+    outcomes: Iterable[str] | None,
+    reads: KeyDecl,
+    writes: KeyDecl,
+    backend: str,
+) -> Skill:
+    is_class = inspect.isclass(obj)
+    if is_class:
+        call = getattr(obj, "__call__", None)  # noqa: B004 - we want the class attribute
+        if call is None or call is object.__call__:
+            raise SkillDefinitionError(
+                f"class {obj.__name__} cannot be a skill: define "
+                "`def __call__(self, bb, rng, *, params...) -> Literal[...]`"
+            )
+        func = call
+        skip = 1  # self
+        default_name = obj.__name__
+    elif callable(obj):
+        func = obj
+        skip = 0
+        default_name = camel_name(getattr(obj, "__name__", "skill"))
+    else:
+        raise SkillDefinitionError(f"@skill needs a function or a class, got {obj!r}")
+    skill_name = name or default_name
+    if not isinstance(skill_name, str) or not skill_name.isidentifier():
+        raise SkillDefinitionError(
+            f"skill name {skill_name!r} must be an identifier (letters, digits, _)"
+        )
+
+    sig = inspect.signature(func)
+    hints = _annotations(func)
+    positional = [
+        p for p in sig.parameters.values()
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+    ][skip:]
+    if len(positional) != 2:
+        raise SkillDefinitionError(
+            f"skill {skill_name}: signature must be (bb, rng, *, params...), "
+            f"found positional arguments {[p.name for p in positional]}; "
+            "make parameters keyword-only by putting them after `*`"
+        )
+    params: list[ParamSpec] = []
+    for p in sig.parameters.values():
+        if p.kind is p.VAR_KEYWORD or p.kind is p.VAR_POSITIONAL:
+            raise SkillDefinitionError(
+                f"skill {skill_name}: *args/**kwargs cannot be declared as parameters; "
+                "list each parameter after `*`"
+            )
+        if p.kind is not p.KEYWORD_ONLY:
+            continue
+        base, decl = _split_annotation(hints.get(p.name, inspect.Parameter.empty), p.default)
+        default = _MISSING if p.default is p.empty else p.default
+        if decl is None and base is inspect.Parameter.empty and isinstance(default, bool):
+            base = bool
+        params.append(make_param_spec(p.name, base, decl, default, skill_name))
+
+    if outcomes is None:
+        ret = hints.get("return", inspect.Parameter.empty)
+        if get_origin(ret) is Literal:
+            outs = tuple(get_args(ret))
+        else:
+            raise SkillDefinitionError(
+                f"skill {skill_name}: declare its outcomes, either "
+                "`-> Literal['success', 'failure']` or @skill(outcomes=('success', 'failure'))"
+            )
+    else:
+        if isinstance(outcomes, str):
+            raise SkillDefinitionError(
+                f"skill {skill_name}: outcomes={outcomes!r} is a string; "
+                f"write outcomes=({outcomes!r},)"
+            )
+        outs = tuple(outcomes)
+    if not outs:
+        raise SkillDefinitionError(f"skill {skill_name}: needs at least one outcome")
+    for o in outs:
+        if not isinstance(o, str) or not o.isidentifier():
+            raise SkillDefinitionError(
+                f"skill {skill_name}: outcome {o!r} must be an identifier string"
+            )
+    if len(set(outs)) != len(outs):
+        raise SkillDefinitionError(f"skill {skill_name}: outcomes {list(outs)} repeat")
+
+    r, rt = _keys(reads, "reads", skill_name)
+    w, wt = _keys(writes, "writes", skill_name)
+    for k in set(rt) & set(wt):
+        if rt[k] != wt[k]:
+            raise SkillDefinitionError(
+                f"skill {skill_name}: key {k!r} typed differently in reads and writes"
+            )
+    spec = SkillSpec(
+        name=skill_name,
+        outcomes=outs,
+        params=tuple(params),
+        reads=r,
+        writes=w,
+        key_types={**rt, **wt},
+        doc=inspect.cleandoc(obj.__doc__ or ""),
+    )
+    return Skill(spec, obj, backend=backend, is_class=is_class)
+
+
+def _annotations(func: Any) -> dict[str, Any]:
+    """Evaluate a function's annotations, tolerating ``Param(...)`` used as an annotation."""
+    raw = dict(getattr(func, "__annotations__", {}) or {})
+    if not raw:
+        return {}
+    globalns = getattr(func, "__globals__", {})
+    try:
+        return typing.get_type_hints(func, include_extras=True)
+    except Exception:  # e.g. `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
+        pass
+    out: dict[str, Any] = {}
+    for k, v in raw.items():
+        if isinstance(v, str):
+            try:
+                v = eval(v, dict(globalns), {})
+            except Exception as exc:
+                raise SkillDefinitionError(
+                    f"{getattr(func, '__qualname__', func)}: cannot evaluate the annotation "
+                    f"of {k!r} ({v!r}): {exc}"
+                ) from exc
+        out[k] = v
+    return out
+
+
+def _split_annotation(ann: Any, default: Any) -> tuple[Any, Param | Choice | None]:
+    """``Annotated[float, Param(...)]`` → (float, Param); ``Param(...)`` → (None, Param)."""
+    if isinstance(ann, (Param, Choice)):
+        return None, ann
+    if get_origin(ann) is typing.Annotated:
+        args = get_args(ann)
+        base = args[0]
+        decl = next((a for a in args[1:] if isinstance(a, (Param, Choice))), None)
+        return base, decl
+    return ann, None
