@@ -228,7 +228,7 @@ class CompiledFSA:
     def run_many(
         self,
         setup: Callable[[np.random.Generator], Blackboard] | None,
-        seed: int | None,
+        seed: int | np.random.SeedSequence | None,
         trials: int,
         *,
         propagate: bool = False,
@@ -300,12 +300,23 @@ def run_fsa(
     return fsa.run(bb, rng, trace=trace, propagate=propagate)
 
 
-def trial_seeds(seed: int | None, trials: int) -> list[np.random.SeedSequence]:
-    """Independent child seeds of ``seed``, one per trial (the same for the same seed)."""
-    return np.random.SeedSequence(seed).spawn(trials)
+def trial_seeds(
+    seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int
+) -> list[np.random.SeedSequence]:
+    """Independent child seeds of ``seed``, one per trial: the same for the same seed.
+
+    A ``SeedSequence`` is copied first, so calling this twice gives the same children.
+    """
+    if isinstance(seed, np.random.SeedSequence):
+        seq = np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key)
+    else:
+        seq = np.random.SeedSequence(seed)
+    return seq.spawn(trials)
 
 
-def trial_rngs(seed: int | None, trials: int) -> Iterator[np.random.Generator]:
+def trial_rngs(
+    seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int
+) -> Iterator[np.random.Generator]:
     for s in trial_seeds(seed, trials):
         yield np.random.default_rng(s)
 

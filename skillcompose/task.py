@@ -1,0 +1,155 @@
+"""Tasks: what an FSA is for, stated so that runs, sweeps and evolution can score it.
+
+A task module defines ``make_task(**settings) -> Task``. ``settings`` are the task's knobs
+(for instance ``p_fail``, the failure probability of the pour-water skills), so that a
+robustness sweep or a worker process can rebuild the same task from its module name and
+settings alone (:class:`TaskRef`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .blackboard import Blackboard
+from .errors import SkillcomposeError
+from .executor import CompiledFSA, RunResult, trial_rngs
+from .fsa import ERROR
+from .registry import Registry, import_target
+
+__all__ = ["Task", "TaskError", "TaskRef", "load_task"]
+
+Fitness = Callable[[str, Blackboard, int], float]
+"""``fitness(outcome, blackboard, steps) -> float``."""
+
+
+class TaskError(SkillcomposeError):
+    """A task module or its settings are unusable."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """A problem for FSAs: the skills, a random world per trial, and a fitness.
+
+    - ``registry`` holds the skills; ``skills`` restricts which of them evolution may place
+      (default: all); ``backend`` picks the implementation.
+    - ``setup(rng)`` draws a world and returns the trial's blackboard.
+    - ``fitness(outcome, bb, steps)``: lower is better when ``minimize`` (the paper's
+      equations 1 and 2), higher otherwise. ``error_fitness`` scores a run whose skill
+      raised (default: the worst possible).
+    - ``target``: a mean fitness at least this good counts as solved.
+    - ``step_limit``: the paper's timeout; ``trials``: runs averaged per evaluation.
+    """
+
+    name: str
+    registry: Registry
+    setup: Callable[[np.random.Generator], Blackboard]
+    fitness: Fitness
+    minimize: bool = True
+    target: float = 0.0
+    step_limit: int = 20
+    trials: int = 1
+    backend: str | None = None
+    skills: tuple[str, ...] | None = None
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    error_fitness: float | None = None
+    ref: TaskRef | None = None
+
+    @property
+    def worst(self) -> float:
+        if self.error_fitness is not None:
+            return self.error_fitness
+        return math.inf if self.minimize else -math.inf
+
+    def skill_names(self) -> tuple[str, ...]:
+        return self.skills if self.skills is not None else tuple(self.registry.names())
+
+    def solved(self, fitness: float) -> bool:
+        return fitness <= self.target if self.minimize else fitness >= self.target
+
+    def better(self, a: float, b: float) -> bool:
+        """True when fitness ``a`` is strictly better than ``b``."""
+        return a < b if self.minimize else a > b
+
+    def score(self, result: RunResult, bb: Blackboard) -> float:
+        if result.outcome == ERROR:
+            return self.worst
+        return float(self.fitness(result.outcome, bb, result.steps))
+
+    def run_trials(
+        self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None, trials: int
+    ) -> list[tuple[RunResult, float]]:
+        """Run ``trials`` fresh worlds from ``seed``; each result with its fitness."""
+        out = []
+        for rng in trial_rngs(seed, trials):
+            bb = self.setup(rng)
+            res = compiled.run(bb, rng)
+            out.append((res, self.score(res, bb)))
+        return out
+
+    def evaluate(
+        self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None,
+        trials: int | None = None,
+    ) -> float:
+        """Mean fitness over ``trials`` (default: the task's) worlds drawn from ``seed``."""
+        scores = [f for _, f in self.run_trials(compiled, seed, trials or self.trials)]
+        return float(np.mean(scores))
+
+
+@dataclass(frozen=True)
+class TaskRef:
+    """How to rebuild a task elsewhere (another process): its module and its settings."""
+
+    module: str
+    settings: Mapping[str, Any] = field(default_factory=dict)
+
+    def build(self) -> Task:
+        return load_task(self.module, **dict(self.settings))
+
+
+def load_task(target: str, **settings: Any) -> Task:
+    """Import a task module (dotted name or ``.py`` path) and call its ``make_task``."""
+    try:
+        module = import_target(target)
+    except SkillcomposeError as exc:
+        raise TaskError(f"cannot load task {target!r}: {exc}") from exc
+    make = getattr(module, "make_task", None)
+    if not callable(make):
+        raise TaskError(
+            f"task module {target} has no make_task(**settings) -> Task function; define one"
+        )
+    try:
+        task = make(**settings)
+    except TypeError as exc:
+        raise TaskError(
+            f"task {target}: make_task() rejected settings {dict(settings)}: {exc}"
+        ) from exc
+    if not isinstance(task, Task):
+        raise TaskError(f"task {target}: make_task() returned {type(task).__name__}, not Task")
+    from dataclasses import replace
+
+    return replace(task, ref=TaskRef(target, dict(settings)))
+
+
+def parse_settings(items: Sequence[str]) -> dict[str, Any]:
+    """``["p_fail=0.3", "trials=4"]`` → ``{"p_fail": 0.3, "trials": 4}``."""
+    out: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item:
+            raise TaskError(f"task setting {item!r} must look like name=value")
+        k, v = item.split("=", 1)
+        val: Any = v
+        for conv in (int, float):
+            try:
+                val = conv(v)
+                break
+            except ValueError:
+                continue
+        if v.lower() in ("true", "false"):
+            val = v.lower() == "true"
+        out[k.strip()] = val
+    return out
