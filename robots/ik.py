@@ -233,6 +233,7 @@ class IKSolver:
         collides: CollisionCheck | None = None,
         time_budget_s: float | None = None,
         diagnose: bool = True,
+        max_restarts: int | None = None,
     ) -> IKResult:
         """Solve for the chain coordinates that put the tool frame on ``target``.
 
@@ -244,6 +245,8 @@ class IKSolver:
             time_budget_s: overrides the solver's budget [s].
             diagnose: on failure, spend a little more time to tell ``joint_limits``
                 from ``unreachable``.
+            max_restarts: stop after this many restarts; with a generous time budget
+                this makes the answer independent of the machine's speed.
         """
         start = time.perf_counter()
         budget = self.time_budget_s if time_budget_s is None else time_budget_s
@@ -287,7 +290,9 @@ class IKSolver:
             score = float(err @ err)
             if best is None or score < best[0]:
                 best = (score, theta, err)
-            if time.perf_counter() > deadline:
+            if time.perf_counter() > deadline or (
+                max_restarts is not None and restarts >= max_restarts
+            ):
                 break
             restarts += 1
             theta = np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
