@@ -1,0 +1,129 @@
+"""Settings of an evolution run: the paper's table 1 as defaults, options beyond it off.
+
+Every field of :class:`EvolutionConfig` is a plain value, so a config is saved in run
+directories and checkpoints as it is and a resumed run checks it has the same one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from .errors import EvolutionConfigError
+
+__all__ = ["EvolutionConfig"]
+
+
+@dataclass(frozen=True)
+class EvolutionConfig:
+    """How to evolve FSAs (sections 3.2-3.7 of the paper; table 1 gives the defaults).
+
+    The paper's algorithm:
+
+    - ``population`` (N): individuals per generation.
+    - ``p_mut``: per-node probability of a node mutation (reroute one outgoing edge and add
+      Gaussian noise to each parameter with probability ``p_mut``); a node's skill changes
+      with probability ``p_mut**2``; the start state changes with probability ``p_mut``.
+    - ``p_cross``: probability that two selected parents are crossed (algorithm 2).
+    - ``p_add`` / ``p_del``: probability of adding / deleting a node per mutated genome.
+    - ``initial_nodes`` (S): nodes of each initial random genome, before pruning.
+    - ``tournament``: tournament size of the selection (PyEvolve's default, 2).
+    - ``param_sigma``: standard deviation of the parameter noise, in units of [0, 1]
+      (PyEvolve's real Gaussian mutator used 0.05).
+    - ``generations``: the budget; the run stops earlier when the task is solved.
+
+    Options beyond the paper (all off by default):
+
+    - ``elitism``: the best ``elitism`` individuals are copied unchanged into the next
+      generation (and, with ``cache``, not evaluated again).
+    - ``trials``: episodes per evaluation (default: the task's ``trials``); fitness is their mean.
+    - ``common_random_numbers``: every individual of a generation meets the same worlds
+      (the same trial seeds), so differences in fitness come from the FSAs, not the dice.
+    - ``cache``: a genome identical to one already evaluated reuses its fitness.
+      ``cache_refresh`` > 0 runs that many fresh trials each time it reappears and folds them
+      into its running mean (for noisy tasks); 0 reuses the cached mean as it is.
+    - ``parsimony``: at equal fitness the genome with fewer states wins (selection, elites
+      and the reported best).
+
+    Run bookkeeping: ``checkpoint_every`` generations between checkpoints of a run directory,
+    ``terminal_weight`` the weight of each terminal outcome against one state when an edge
+    target is drawn at random (see docs/evolve.md), ``chunks_per_worker`` how many
+    submissions each worker gets per generation.
+    """
+
+    population: int = 300
+    p_mut: float = 0.1
+    p_cross: float = 0.1
+    p_add: float = 0.2
+    p_del: float = 0.01
+    initial_nodes: int = 50
+    tournament: int = 2
+    param_sigma: float = 0.05
+    generations: int = 1000
+    elitism: int = 0
+    trials: int | None = None
+    common_random_numbers: bool = False
+    cache: bool = False
+    cache_refresh: int = 0
+    parsimony: bool = False
+    terminal_weight: float = 1.0
+    checkpoint_every: int = 10
+    chunks_per_worker: int = 4
+
+    def __post_init__(self) -> None:
+        problems: list[str] = []
+
+        def whole(name: str, low: int) -> None:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                problems.append(f"{name} = {v!r}: expected a whole number >= {low}")
+
+        def prob(name: str) -> None:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+                problems.append(f"{name} = {v!r}: expected a probability in [0, 1]")
+
+        whole("population", 2)
+        whole("initial_nodes", 1)
+        whole("tournament", 1)
+        whole("generations", 0)
+        whole("elitism", 0)
+        whole("cache_refresh", 0)
+        whole("checkpoint_every", 1)
+        whole("chunks_per_worker", 1)
+        for name in ("p_mut", "p_cross", "p_add", "p_del"):
+            prob(name)
+        if self.trials is not None:
+            whole("trials", 1)
+        if not isinstance(self.param_sigma, (int, float)) or self.param_sigma < 0:
+            problems.append(f"param_sigma = {self.param_sigma!r}: expected a number >= 0")
+        if not isinstance(self.terminal_weight, (int, float)) or self.terminal_weight < 0:
+            problems.append(
+                f"terminal_weight = {self.terminal_weight!r}: expected a number >= 0"
+            )
+        if isinstance(self.elitism, int) and isinstance(self.population, int) and \
+                self.elitism >= self.population:
+            problems.append(
+                f"elitism = {self.elitism} must be smaller than population = {self.population}"
+            )
+        if problems:
+            raise EvolutionConfigError(
+                "invalid evolution settings: " + "; ".join(problems)
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> EvolutionConfig:
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise EvolutionConfigError(
+                f"unknown evolution settings {unknown}; valid ones are {sorted(names)}"
+            )
+        return cls(**data)
+
+    def replace(self, **changes: Any) -> EvolutionConfig:
+        return dataclasses.replace(self, **changes)

@@ -1,0 +1,367 @@
+"""The genome: an FSA as a directed multigraph over the task's skills (section 3.3).
+
+Each node holds a skill, its parameters normalised to [0, 1] and exactly one outgoing edge per
+outcome of its skill. An edge goes to a node or to one of the FSA's terminal outcomes
+(``success`` / ``failure``), which ends a run the way the paper's terminating actions did.
+Nodes carry stable integer ids, so an exported state is named like the paper's figures,
+``MoveToObject_7``.
+
+A genome is compiled for every evaluation, so :class:`GenomeCompiler` builds the runtime's
+:class:`~skillcompose.CompiledFSA` straight from the genome with the skills' implementations
+bound once; the run itself is the runtime's executor, not a second interpreter.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from skillcompose import FSA, CompiledFSA, ParamSpec, State
+from skillcompose.blackboard import Access
+from skillcompose.task import Task
+
+from .errors import SeedFSAError
+
+__all__ = ["Genome", "GenomeCompiler", "Node", "SkillChoice", "SkillSet"]
+
+
+@dataclass(frozen=True)
+class SkillChoice:
+    """One skill evolution may place: its name, outcomes and parameters."""
+
+    name: str
+    outcomes: tuple[str, ...]
+    params: tuple[ParamSpec, ...]
+
+
+class SkillSet:
+    """The skills of a task that evolution may place, indexed, and the FSA's terminals."""
+
+    def __init__(
+        self, choices: Iterable[SkillChoice], terminals: tuple[str, ...] = ("success", "failure")
+    ) -> None:
+        self.choices = tuple(choices)
+        self.terminals = tuple(terminals)
+        self.index = {c.name: k for k, c in enumerate(self.choices)}
+        if not self.choices:
+            raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
+
+    @classmethod
+    def from_task(cls, task: Task, terminals: tuple[str, ...] = ("success", "failure")) -> SkillSet:
+        choices = []
+        for name in task.skill_names():
+            spec = task.registry.spec(name)
+            choices.append(SkillChoice(spec.name, spec.outcomes, spec.params))
+        return cls(choices, terminals)
+
+    def __len__(self) -> int:
+        return len(self.choices)
+
+    def terminal_code(self, outcome: str) -> int:
+        """The edge code of a terminal outcome: ``-(k + 1)`` for the ``k``-th terminal."""
+        return -(self.terminals.index(outcome) + 1)
+
+
+class Node:
+    """One state of a genome: a skill index, parameters in [0, 1] and one edge per outcome.
+
+    ``edges[k]`` is the target of the skill's ``k``-th outcome: a node id (>= 0) or a terminal
+    outcome, coded ``-(t + 1)`` for the ``t``-th terminal.
+    """
+
+    __slots__ = ("edges", "params", "skill")
+
+    def __init__(self, skill: int, params: list[float], edges: list[int]) -> None:
+        self.skill = skill
+        self.params = params
+        self.edges = edges
+
+    def copy(self) -> Node:
+        return Node(self.skill, self.params[:], self.edges[:])
+
+    def __repr__(self) -> str:
+        return f"Node(skill={self.skill}, params={self.params}, edges={self.edges})"
+
+
+class Genome:
+    """A directed multigraph of :class:`Node` by id, with a start node.
+
+    ``origin`` records how the genome came to be (generation, parents, operators): the
+    lineage written beside an exported FSA.
+    """
+
+    __slots__ = ("next_id", "nodes", "origin", "start")
+
+    def __init__(
+        self, nodes: dict[int, Node], start: int, next_id: int | None = None,
+        origin: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.nodes = nodes
+        self.start = start
+        self.next_id = next_id if next_id is not None else (max(nodes, default=-1) + 1)
+        self.origin: dict[str, Any] = dict(origin or {})
+
+    def copy(self) -> Genome:
+        return Genome(
+            {k: n.copy() for k, n in self.nodes.items()}, self.start, self.next_id,
+            dict(self.origin),
+        )
+
+    def __len__(self) -> int:
+        return len(self.nodes)
+
+    def new_id(self) -> int:
+        i = self.next_id
+        self.next_id += 1
+        return i
+
+    # -- graph queries ---------------------------------------------------------------------
+    def reachable(self) -> list[int]:
+        """Node ids reachable from the start, in breadth-first order."""
+        nodes = self.nodes
+        if self.start not in nodes:
+            return []
+        seen = {self.start}
+        order = [self.start]
+        queue = deque(order)
+        while queue:
+            for t in nodes[queue.popleft()].edges:
+                if t >= 0 and t not in seen:
+                    seen.add(t)
+                    order.append(t)
+                    queue.append(t)
+        return order
+
+    def prune(self) -> int:
+        """Remove the nodes the start cannot reach (section 3.4); return how many."""
+        reach = set(self.reachable())
+        dead = [k for k in self.nodes if k not in reach]
+        for k in dead:
+            del self.nodes[k]
+        return len(dead)
+
+    def incoming(self) -> dict[int, list[tuple[int, int]]]:
+        """For each node id, its incoming edges as ``(source id, outcome index)``."""
+        inc: dict[int, list[tuple[int, int]]] = {k: [] for k in self.nodes}
+        for src, n in self.nodes.items():
+            for o, t in enumerate(n.edges):
+                if t >= 0:
+                    inc[t].append((src, o))
+        return inc
+
+    def key(self) -> tuple[Any, ...]:
+        """A canonical form: equal for genomes that are the same FSA up to node ids."""
+        order = self.reachable()
+        rank = {k: i for i, k in enumerate(order)}
+        return tuple(
+            (n.skill, tuple(n.params), tuple(rank[t] if t >= 0 else t for t in n.edges))
+            for n in (self.nodes[k] for k in order)
+        )
+
+    # -- invariants ------------------------------------------------------------------------
+    def problems(self, skills: SkillSet) -> list[str]:
+        """Broken invariants (empty when the genome is sound): used by tests and on load."""
+        out: list[str] = []
+        nterm = len(skills.terminals)
+        if self.start not in self.nodes:
+            out.append(f"start {self.start} is not a node")
+        for k, n in self.nodes.items():
+            if k < 0 or k >= self.next_id:
+                out.append(f"node id {k} outside [0, next_id={self.next_id})")
+            if not 0 <= n.skill < len(skills):
+                out.append(f"node {k}: skill index {n.skill} out of range")
+                continue
+            c = skills.choices[n.skill]
+            if len(n.edges) != len(c.outcomes):
+                out.append(
+                    f"node {k} ({c.name}): {len(n.edges)} edges for {len(c.outcomes)} outcomes"
+                )
+            if len(n.params) != len(c.params):
+                out.append(
+                    f"node {k} ({c.name}): {len(n.params)} parameters, expected {len(c.params)}"
+                )
+            for x in n.params:
+                if not 0.0 <= x <= 1.0:
+                    out.append(f"node {k} ({c.name}): parameter {x} outside [0, 1]")
+            for t in n.edges:
+                if t >= 0 and t not in self.nodes:
+                    out.append(f"node {k} ({c.name}): edge to missing node {t}")
+                if t < 0 and -t > nterm:
+                    out.append(f"node {k} ({c.name}): edge to unknown terminal code {t}")
+        if not out:
+            reach = set(self.reachable())
+            for k in self.nodes:
+                if k not in reach:
+                    out.append(f"node {k} is unreachable from the start {self.start}")
+        return out
+
+    # -- to and from the runtime's FSA -----------------------------------------------------
+    def state_name(self, node_id: int, skills: SkillSet) -> str:
+        return f"{skills.choices[self.nodes[node_id].skill].name}_{node_id}"
+
+    def to_fsa(
+        self, skills: SkillSet, *, step_limit: int = 20, name: str = "",
+        meta: Mapping[str, Any] | None = None,
+    ) -> FSA:
+        """The FSA this genome encodes, with parameters in the skills' units.
+
+        States are named ``Skill_N`` (the node id), in breadth-first order from the start.
+        """
+        order = self.reachable()
+        names = {k: self.state_name(k, skills) for k in order}
+        states: dict[str, State] = {}
+        for k in order:
+            n = self.nodes[k]
+            c = skills.choices[n.skill]
+            params = {p.name: p.from_unit(x) for p, x in zip(c.params, n.params, strict=True)}
+            tr = {
+                o: (names[t] if t >= 0 else skills.terminals[-t - 1])
+                for o, t in zip(c.outcomes, n.edges, strict=True)
+            }
+            states[names[k]] = State(c.name, params, tr)
+        return FSA(states, names[self.start], skills.terminals, step_limit, name, dict(meta or {}))
+
+    @classmethod
+    def from_fsa(cls, fsa: FSA, skills: SkillSet, where: str = "") -> Genome:
+        """Encode a hand-written or edited FSA, for seeding a population.
+
+        Raises :class:`SeedFSAError` when the FSA uses a skill the task does not offer, has
+        other terminals, or misses a transition.
+        """
+        src = where or fsa.path or "the seed FSA"
+        if tuple(fsa.terminals) != skills.terminals:
+            raise SeedFSAError(
+                f"{src}: terminals {list(fsa.terminals)} differ from the task's "
+                f"{list(skills.terminals)}; set `terminals: {list(skills.terminals)}`"
+            )
+        ids: dict[str, int] = {}
+        used: set[int] = set()
+        pending: list[str] = []
+        for sname in fsa.states:
+            m = re.fullmatch(r".*_(\d+)", sname)
+            if m is not None and int(m.group(1)) not in used:
+                ids[sname] = int(m.group(1))
+                used.add(ids[sname])
+            else:
+                pending.append(sname)
+        nxt = max(used, default=-1) + 1
+        for sname in pending:
+            ids[sname] = nxt
+            nxt += 1
+        nodes: dict[int, Node] = {}
+        problems: list[str] = []
+        for sname, st in fsa.states.items():
+            line = _line(fsa, "states", sname)
+            k = skills.index.get(st.skill)
+            if k is None:
+                problems.append(
+                    f"{src}{line}: state {sname}: skill {st.skill!r} is not one this task lets "
+                    f"evolution place ({', '.join(c.name for c in skills.choices)}); "
+                    "replace it or add it to the task's skills"
+                )
+                continue
+            c = skills.choices[k]
+            params: list[float] = []
+            for p in c.params:
+                value = st.params.get(p.name, p.default)
+                try:
+                    value = p.check(value, f"state {sname}")
+                except Exception as exc:
+                    problems.append(f"{src}{_line(fsa, 'states', sname, 'params', p.name)}: {exc}")
+                    value = p.default
+                params.append(p.to_unit(value))
+            for pname in st.params:
+                if pname not in {p.name for p in c.params}:
+                    problems.append(
+                        f"{src}{line}: state {sname}: skill {c.name} has no parameter "
+                        f"{pname!r}; its parameters are {[p.name for p in c.params]}"
+                    )
+            edges: list[int] = []
+            for o in c.outcomes:
+                t = st.transitions.get(o)
+                if t is None:
+                    problems.append(
+                        f"{src}{line}: state {sname}: outcome {o!r} of {c.name} has no "
+                        f"transition; add `{o}: <state or {'/'.join(skills.terminals)}>`"
+                    )
+                    edges.append(skills.terminal_code(skills.terminals[-1]))
+                elif t in ids:
+                    edges.append(ids[t])
+                else:
+                    edges.append(skills.terminal_code(t))
+            nodes[ids[sname]] = Node(k, params, edges)
+        if problems:
+            raise SeedFSAError("cannot seed evolution from this FSA:\n  " + "\n  ".join(problems))
+        g = cls(nodes, ids[fsa.start], nxt, {"seeded_from": src})
+        g.prune()
+        return g
+
+    def __repr__(self) -> str:
+        return f"<Genome {len(self.nodes)} nodes, start {self.start}>"
+
+
+def _line(fsa: FSA, *keys: str) -> str:
+    if fsa.source is None:
+        return ""
+    line, _ = fsa.source.where(*keys)
+    return f":{line}" if line is not None else ""
+
+
+class GenomeCompiler:
+    """Compiles genomes to the runtime's :class:`CompiledFSA`, cheaply, many times.
+
+    Skill implementations are resolved and bound once; each compilation maps the parameters
+    to the skills' units, binds them and builds the integer transition table that
+    :meth:`CompiledFSA.run` executes. Genomes are valid by construction, so the registry
+    check of :func:`~skillcompose.compile_fsa` is skipped.
+    """
+
+    def __init__(self, task: Task, skills: SkillSet, step_limit: int | None = None) -> None:
+        reg = task.registry
+        self.skills = skills
+        self.backend = task.backend or reg.backend
+        self.step_limit = step_limit if step_limit is not None else task.step_limit
+        self._fns: list[Callable[..., str]] = []
+        self._access: list[Access] = []
+        self._key_types: dict[str, Any] = {}
+        for c in skills.choices:
+            impl = reg.resolve(c.name, self.backend)
+            self._fns.append(impl.bind(reg, self.backend))
+            self._access.append(impl.spec.access())
+            for k, t in impl.spec.key_types.items():
+                self._key_types.setdefault(k, t)
+
+    def fsa(self, g: Genome, **kw: Any) -> FSA:
+        return g.to_fsa(self.skills, step_limit=self.step_limit, **kw)
+
+    def compile(self, g: Genome) -> CompiledFSA:
+        skills = self.skills
+        order = g.reachable()
+        index = {k: i for i, k in enumerate(order)}
+        names: list[str] = []
+        skill_names: list[str] = []
+        table: list[tuple[Callable[..., str], Access, dict[str, int]]] = []
+        states: dict[str, State] = {}
+        terminals = skills.terminals
+        for k in order:
+            names.append(f"{skills.choices[g.nodes[k].skill].name}_{k}")
+        for i, k in enumerate(order):
+            n = g.nodes[k]
+            c = skills.choices[n.skill]
+            fn = self._fns[n.skill]
+            kwargs = {p.name: p.from_unit(x) for p, x in zip(c.params, n.params, strict=True)}
+            if kwargs:
+                fn = functools.partial(fn, **kwargs)
+            nxt = dict(zip(c.outcomes, [index[t] if t >= 0 else t for t in n.edges], strict=True))
+            skill_names.append(c.name)
+            table.append((fn, self._access[n.skill], nxt))
+            states[names[i]] = State(c.name, kwargs, {
+                o: (names[index[t]] if t >= 0 else terminals[-t - 1])
+                for o, t in zip(c.outcomes, n.edges, strict=True)
+            })
+        fsa = FSA(states, names[0], terminals, self.step_limit)
+        return CompiledFSA(fsa, table, names, skill_names, self._key_types, self.backend)

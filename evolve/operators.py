@@ -1,0 +1,270 @@
+"""Genetic operators of sections 3.4-3.7: initialisation, mutations and crossover.
+
+Every operator takes an explicit ``numpy.random.Generator``, works in place on its genome(s)
+and leaves them sound: one edge per outcome of each node's skill, parameters in [0, 1], the
+start a node, every node reachable from the start (unreachable ones are pruned, section 3.4).
+
+A random edge target is a node or a terminal outcome; each terminal weighs
+``terminal_weight`` against one node (the paper's graphs had no terminals: its terminating
+actions ended a run themselves).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from .config import EvolutionConfig
+from .genome import Genome, Node, SkillSet
+
+__all__ = [
+    "add_node",
+    "change_start",
+    "crossover",
+    "delete_node",
+    "initialize",
+    "mutate",
+    "mutate_node",
+    "random_node",
+    "random_target",
+]
+
+
+def random_target(
+    g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0,
+    exclude: int | None = None, extra: int | None = None,
+) -> int:
+    """A random edge target: a node id (``extra`` counts as a node) or a terminal code."""
+    ids = [k for k in g.nodes if k != exclude]
+    if extra is not None and extra not in g.nodes and extra != exclude:
+        ids.append(extra)
+    nterm = len(skills.terminals)
+    terms = [-(t + 1) for t in range(nterm) if -(t + 1) != exclude]
+    total = len(ids) + weight * len(terms)
+    if total <= 0:
+        return ids[0] if ids else (terms[0] if terms else -1)
+    u = rng.random() * total
+    if u < len(ids):
+        return ids[min(int(u), len(ids) - 1)]
+    k = min(int((u - len(ids)) / weight), len(terms) - 1) if weight > 0 else 0
+    return terms[k]
+
+
+def random_node(
+    g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float, node_id: int
+) -> Node:
+    """A node with a random skill, random parameters and random edges (``node_id`` may be
+    a target of its own edges)."""
+    k = int(rng.integers(len(skills)))
+    c = skills.choices[k]
+    params = [float(x) for x in rng.random(len(c.params))]
+    edges = [random_target(g, skills, rng, weight, extra=node_id) for _ in c.outcomes]
+    return Node(k, params, edges)
+
+
+def initialize(
+    skills: SkillSet, rng: np.random.Generator, nodes: int, weight: float = 1.0
+) -> Genome:
+    """Section 3.5: ``nodes`` random nodes with random edges, a start, then pruning."""
+    g = Genome({}, 0, 0)
+    choices = [int(rng.integers(len(skills))) for _ in range(nodes)]
+    for k in choices:
+        c = skills.choices[k]
+        g.nodes[g.new_id()] = Node(k, [float(x) for x in rng.random(len(c.params))], [])
+    for n in g.nodes.values():
+        n.edges = [
+            random_target(g, skills, rng, weight) for _ in skills.choices[n.skill].outcomes
+        ]
+    eligible = _start_candidates(g)
+    pool = eligible or list(g.nodes)
+    g.start = pool[int(rng.integers(len(pool)))]
+    g.prune()
+    return g
+
+
+def _start_candidates(g: Genome, exclude: int | None = None) -> list[int]:
+    """Nodes with an outgoing edge that is not a self-loop (section 3.6)."""
+    return [
+        k for k, n in g.nodes.items() if k != exclude and any(t != k for t in n.edges)
+    ]
+
+
+def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0) -> bool:
+    """Figure 3: a new random node takes over one incoming edge of a node that has two or
+    more; when no node has, it takes over an edge into a terminal outcome. Returns whether
+    a node was added."""
+    inc = g.incoming()
+    crowded = [k for k, e in inc.items() if len(e) >= 2]
+    if crowded:
+        v = crowded[int(rng.integers(len(crowded)))]
+        src, o = inc[v][int(rng.integers(len(inc[v])))]
+    else:
+        into_terminal = [(k, o) for k, n in g.nodes.items() for o, t in enumerate(n.edges) if t < 0]
+        if not into_terminal:
+            return False
+        src, o = into_terminal[int(rng.integers(len(into_terminal)))]
+    new = g.new_id()
+    node = random_node(g, skills, rng, weight, new)
+    g.nodes[new] = node
+    g.nodes[src].edges[o] = new
+    g.prune()
+    return True
+
+
+def delete_node(
+    g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0
+) -> bool:
+    """Remove a random node and re-route its incoming edges at random (section 3.6)."""
+    if len(g.nodes) <= 1:
+        return False
+    ids = list(g.nodes)
+    v = ids[int(rng.integers(len(ids)))]
+    del g.nodes[v]
+    for n in g.nodes.values():
+        for o, t in enumerate(n.edges):
+            if t == v:
+                n.edges[o] = random_target(g, skills, rng, weight)
+    if g.start == v:
+        pool = _start_candidates(g) or list(g.nodes)
+        g.start = pool[int(rng.integers(len(pool)))]
+    g.prune()
+    return True
+
+
+def change_start(g: Genome, rng: np.random.Generator) -> bool:
+    """Move the start to another node with an edge that is not a self-loop (section 3.6)."""
+    pool = _start_candidates(g, exclude=g.start)
+    if not pool:
+        return False
+    g.start = pool[int(rng.integers(len(pool)))]
+    g.prune()
+    return True
+
+
+def mutate_node(
+    g: Genome, node_id: int, skills: SkillSet, rng: np.random.Generator,
+    p_mut: float, sigma: float, weight: float = 1.0,
+) -> str:
+    """Node mutation (section 3.6), applied to a node chosen with probability ``p_mut``.
+
+    With probability ``p_mut`` (so ``p_mut**2`` overall) the node's skill changes and its
+    parameters and edges are recreated; otherwise one outgoing edge is re-routed to a
+    different random target and each parameter gets zero-mean Gaussian noise (standard
+    deviation ``sigma``) with probability ``p_mut``, clipped to [0, 1]. Does not prune.
+    """
+    n = g.nodes[node_id]
+    if rng.random() < p_mut:
+        fresh = random_node(g, skills, rng, weight, node_id)
+        n.skill, n.params, n.edges = fresh.skill, fresh.params, fresh.edges
+        return "skill"
+    o = int(rng.integers(len(n.edges)))
+    n.edges[o] = random_target(g, skills, rng, weight, exclude=n.edges[o])
+    for i in range(len(n.params)):
+        if rng.random() < p_mut:
+            x = n.params[i] + float(rng.normal(0.0, sigma))
+            n.params[i] = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
+    return "node"
+
+
+def mutate(
+    g: Genome, skills: SkillSet, rng: np.random.Generator, cfg: EvolutionConfig
+) -> list[str]:
+    """The mutation step of algorithm 1 on one child; returns the operators applied.
+
+    As in the paper's PyEvolve implementation, each node mutates with probability ``p_mut``;
+    then a node is added with ``p_add``, one deleted with ``p_del`` and the start changes
+    with ``p_mut``; unreachable nodes are pruned.
+    """
+    ops: list[str] = []
+    w = cfg.terminal_weight
+    for k in list(g.nodes):
+        if k in g.nodes and rng.random() < cfg.p_mut:
+            ops.append(mutate_node(g, k, skills, rng, cfg.p_mut, cfg.param_sigma, w))
+    if rng.random() < cfg.p_add and add_node(g, skills, rng, w):
+        ops.append("add")
+    if rng.random() < cfg.p_del and delete_node(g, skills, rng, w):
+        ops.append("delete")
+    if rng.random() < cfg.p_mut and change_start(g, rng):
+        ops.append("start")
+    g.prune()
+    return ops
+
+
+def _bfs(g: Genome, source: int, n: int) -> list[int]:
+    """Up to ``n`` node ids around ``source``, breadth first over edges in both directions."""
+    nbrs: dict[int, list[int]] = {k: [] for k in g.nodes}
+    for k, node in g.nodes.items():
+        for t in node.edges:
+            if t >= 0:
+                nbrs[k].append(t)
+                nbrs[t].append(k)
+    order = [source]
+    seen = {source}
+    queue = deque(order)
+    while queue and len(order) < n:
+        for t in nbrs[queue.popleft()]:
+            if t not in seen:
+                seen.add(t)
+                order.append(t)
+                if len(order) >= n:
+                    break
+                queue.append(t)
+    return order
+
+
+def crossover(
+    g1: Genome, g2: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0
+) -> int:
+    """Algorithm 2 in place on two children (copies of the parents); returns the number of
+    nodes swapped.
+
+    A random number of nodes (1 to half the smaller genome) is taken by BFS around a random
+    node of each genome; the two subgraphs' internal edges are removed, the nodes (skill and
+    parameters) swapped pairwise in BFS order, the internal edges recreated between the
+    corresponding positions, and each swapped node's missing outcome edges filled: first
+    with the position's old edge to outside the subgraph for the same outcome, else at
+    random. An edge into a terminal outcome travels with its node.
+    """
+    half = max(1, min(len(g1), len(g2)) // 2)
+    num = int(rng.integers(1, half + 1))
+    ids1, ids2 = list(g1.nodes), list(g2.nodes)
+    sub1 = _bfs(g1, ids1[int(rng.integers(len(ids1)))], num)
+    sub2 = _bfs(g2, ids2[int(rng.integers(len(ids2)))], num)
+    num = min(len(sub1), len(sub2))
+    sub1, sub2 = sub1[:num], sub2[:num]
+    old1 = {k: g1.nodes[k].copy() for k in sub1}
+    old2 = {k: g2.nodes[k].copy() for k in sub2}
+    _implant(g1, sub1, sub2, old1, old2, skills, rng, weight)
+    _implant(g2, sub2, sub1, old2, old1, skills, rng, weight)
+    g1.prune()
+    g2.prune()
+    return num
+
+
+def _implant(
+    g: Genome, sub: list[int], other_sub: list[int], own: dict[int, Node],
+    other: dict[int, Node], skills: SkillSet, rng: np.random.Generator, weight: float,
+) -> None:
+    """Put ``other``'s subgraph nodes at the positions ``sub`` of ``g`` (lines 8-17)."""
+    pos = {k: i for i, k in enumerate(other_sub)}
+    own_set = set(sub)
+    for i, k in enumerate(sub):
+        donor = other[other_sub[i]]
+        before = own[k]
+        c = skills.choices[donor.skill]
+        kept = {  # the position's edges to outside its subgraph, by outcome name
+            skills.choices[before.skill].outcomes[o]: t
+            for o, t in enumerate(before.edges) if t >= 0 and t not in own_set
+        }
+        edges: list[int] = []
+        for o, t in enumerate(donor.edges):
+            if t >= 0 and t in pos:
+                edges.append(sub[pos[t]])  # an internal edge, recreated
+            elif t < 0:
+                edges.append(t)  # into a terminal outcome: travels with the node
+            elif c.outcomes[o] in kept:
+                edges.append(kept[c.outcomes[o]])
+            else:
+                edges.append(random_target(g, skills, rng, weight))  # line 17: repair
+        g.nodes[k] = Node(donor.skill, donor.params[:], edges)
