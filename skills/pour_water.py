@@ -1,0 +1,294 @@
+"""The pour-water skills of the paper's section 4.1, on the abstract "sim" backend.
+
+These are *minimal simulator* skills (section 3.8): each one reads the world from the
+blackboard, decides whether it can run, and writes its effect back. No physics: a grasp is
+"the jug is in the gripper", a pour is "the water is in the glass".
+
+The world (all positions in the robot's base frame ``world``, metres; angles in radians):
+
+============================ ==============================================================
+key                          meaning (written by the task's ``setup`` unless said otherwise)
+============================ ==============================================================
+``p_fail``                   probability of a random ``failure`` of MoveToObject,
+                             GraspObject and MoveGripperToParam (one knob for all three)
+``jug_position_world``       the jug's spout, the point that pours [m]
+``glass_position_world``     the centre of the glass's rim [m]
+``gripper_position_world``   the gripper; the held jug's spout sits at this point [m]
+``gripper_rotation``         the gripper's roll, pitch, yaw (ρ, φ, θ) [rad]
+``holding_jug``              the jug is in the gripper
+``water``                    where the water is: ``"jug"``, ``"glass"`` or ``"spilled"``
+``jug_location_world``       where RecogniseObject saw the jug (absent until then) [m]
+``glass_location_world``     where RecogniseObject saw the glass (absent until then) [m]
+============================ ==============================================================
+
+Positions and rotations are plain ``(x, y, z)`` float tuples: these skills run millions of
+times during evolution.
+
+Pouring. The held jug pours when it is tilted at least :data:`POUR_TILT_MIN_RAD` (60°) from
+upright and at most :data:`POUR_TILT_MAX_RAD` (120°): below that the water stays in, above
+it the jug is nearly upside down and the water leaves through the whole mouth, wider than
+the glass. The water lands in the glass when the spout is over it: at most
+:data:`POUR_RADIUS_M` (4 cm, the glass's mouth) from the rim's centre horizontally, and
+between :data:`POUR_HEIGHT_MIN_M` (1 cm, clear of the rim) and :data:`POUR_HEIGHT_MAX_M`
+(15 cm, higher splashes) above it. Water leaving the jug anywhere else, or upside down, is
+spilled. The tilt of rotation (ρ, φ, θ) — roll about x, pitch about y, yaw about z, applied
+in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw θ turns the jug
+about the vertical and never pours it. So "the one correct set of values" of the paper is
+the box of positions above times the band of tilts, with θ free. Water moves whenever the
+held jug's pose changes: after a rotation, a move and a grasp.
+
+Randomness comes only from the run's generator ``rng``: a skill whose preconditions hold
+draws one number and fails when it is below ``p_fail``; a skill whose preconditions fail
+returns ``failure`` without drawing.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Annotated, Literal
+
+import numpy as np
+
+from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, skill
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+__all__ = [
+    "APPROACH_OFFSET_M",
+    "APPROACH_TOLERANCE_M",
+    "POUR_HEIGHT_MAX_M",
+    "POUR_HEIGHT_MIN_M",
+    "POUR_RADIUS_M",
+    "POUR_TILT_MAX_RAD",
+    "POUR_TILT_MIN_RAD",
+    "SKILLS",
+    "WORKSPACE_WORLD",
+    "Vec3",
+    "check_success",
+    "distance",
+    "grasp_object",
+    "move_gripper_to_param",
+    "move_to_object",
+    "pours_into_glass",
+    "recognise_object",
+    "register",
+    "rotate_gripper_to_param",
+    "tilt",
+]
+
+Vec3 = tuple[float, float, float]
+
+APPROACH_TOLERANCE_M = 0.10
+"""GraspObject needs the gripper this close to the jug (the paper's 10 cm)."""
+APPROACH_OFFSET_M = 0.06
+"""MoveToObject stops this far in front of the jug (−x of the world), inside the tolerance."""
+POUR_RADIUS_M = 0.04
+"""Horizontal distance from the spout to the rim's centre that still hits the glass."""
+POUR_HEIGHT_MIN_M = 0.01
+"""The spout must clear the rim by at least this much."""
+POUR_HEIGHT_MAX_M = 0.15
+"""From higher than this above the rim the water splashes out."""
+POUR_TILT_MIN_RAD = math.pi / 3
+"""A held jug starts pouring at this tilt from upright."""
+POUR_TILT_MAX_RAD = 2 * math.pi / 3
+"""Beyond this tilt the water leaves through the whole mouth and misses the glass."""
+WORKSPACE_WORLD = ((0.20, 1.00), (-0.60, 0.60), (0.75, 1.50))
+"""Where MoveGripperToParam may send the gripper: (x, y, z) ranges in the world frame [m].
+The table top is at z = 0.75 m."""
+
+_X_M, _Y_M, _Z_M = WORKSPACE_WORLD
+_PI = math.pi
+
+_WORLD_KEYS = ("jug_position_world", "glass_position_world", "gripper_position_world")
+
+
+def distance(a: Sequence[float], b: Sequence[float]) -> float:
+    """Euclidean distance between two points [m]."""
+    return math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+
+
+def tilt(rotation: Sequence[float]) -> float:
+    """Angle between the gripper's z axis and the vertical for roll-pitch-yaw ``rotation``
+    [rad]: ``arccos(cos ρ · cos φ)``, in [0, π]."""
+    c = math.cos(rotation[0]) * math.cos(rotation[1])
+    return math.acos(-1.0 if c < -1.0 else 1.0 if c > 1.0 else c)
+
+
+def pours_into_glass(spout_world: Sequence[float], glass_world: Sequence[float]) -> bool:
+    """True when water leaving a spout at ``spout_world`` lands in the glass at
+    ``glass_world`` (both in the world frame [m])."""
+    dx = spout_world[0] - glass_world[0]
+    dy = spout_world[1] - glass_world[1]
+    dz = spout_world[2] - glass_world[2]
+    return dx * dx + dy * dy <= POUR_RADIUS_M**2 and POUR_HEIGHT_MIN_M <= dz <= POUR_HEIGHT_MAX_M
+
+
+def _world(bb: Blackboard, key: str, who: str) -> Vec3:
+    value = bb.get(key)
+    if value is None:
+        raise BlackboardKeyError(
+            f"skill {who}: the pour-water world is not set up (blackboard key {key!r} is "
+            "missing); run the FSA with its task (`--task examples.pour_water`), whose setup "
+            f"writes {', '.join(_WORLD_KEYS)}"
+        )
+    return (float(value[0]), float(value[1]), float(value[2]))
+
+
+def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
+    return rng.random() < bb["p_fail"]
+
+
+def _move_water(bb: Blackboard) -> None:
+    """Pour or spill the held jug's water if its pose now makes it leave the jug."""
+    if not bb["holding_jug"] or bb["water"] != "jug":
+        return
+    t = tilt(bb["gripper_rotation"])
+    if t < POUR_TILT_MIN_RAD:
+        return
+    if t <= POUR_TILT_MAX_RAD and pours_into_glass(
+        bb["jug_position_world"], bb["glass_position_world"]
+    ):
+        bb["water"] = "glass"
+    else:
+        bb["water"] = "spilled"
+
+
+@skill(
+    reads=("jug_position_world", "glass_position_world"),
+    writes=("jug_location_world", "glass_location_world"),
+    backend="sim",
+)
+def recognise_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+    """Find the jug and the glass with the stereo camera and store where they are.
+
+    Both objects are assumed visible, so this always succeeds.
+    """
+    bb["jug_location_world"] = _world(bb, "jug_position_world", "RecogniseObject")
+    bb["glass_location_world"] = _world(bb, "glass_position_world", "RecogniseObject")
+    return "success"
+
+
+@skill(
+    reads=("jug_location_world", "jug_position_world", "holding_jug", "p_fail"),
+    writes=("gripper_position_world", "gripper_rotation"),
+    backend="sim",
+)
+def move_to_object(
+    bb: Blackboard, rng: np.random.Generator
+) -> Literal["success", "failure"]:
+    """Bring the gripper, upright, to within 10 cm of the jug (a pre-grasp pose).
+
+    ``failure`` when the jug has not been recognised, or at random with ``p_fail``. With the
+    jug already in the gripper there is nothing to approach: the gripper does not move.
+    """
+    seen = bb.get("jug_location_world")
+    if seen is None:
+        return "failure"
+    if _random_failure(bb, rng):
+        return "failure"
+    if not bb["holding_jug"]:
+        bb["gripper_position_world"] = (seen[0] - APPROACH_OFFSET_M, seen[1], seen[2])
+        bb["gripper_rotation"] = (0.0, 0.0, 0.0)
+    return "success"
+
+
+@skill(
+    reads=(
+        "jug_location_world", "gripper_position_world", "gripper_rotation", "p_fail",
+        "glass_position_world",
+    ),
+    writes=("holding_jug", "jug_position_world", "water"),
+    backend="sim",
+)
+def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+    """Close the gripper on the jug; the jug is then held with its spout at the gripper.
+
+    ``failure`` unless the jug was recognised and the gripper is within 10 cm of it, or at
+    random with ``p_fail``. Grasping with a tilted gripper tilts the jug (and may spill).
+    """
+    if bb.get("jug_location_world") is None:
+        return "failure"
+    gripper = bb["gripper_position_world"]
+    jug = bb["jug_position_world"]
+    if distance(gripper, jug) > APPROACH_TOLERANCE_M:
+        return "failure"
+    if _random_failure(bb, rng):
+        return "failure"
+    bb["holding_jug"] = True
+    bb["jug_position_world"] = gripper
+    _move_water(bb)
+    return "success"
+
+
+@skill(
+    reads=("p_fail", "holding_jug", "gripper_rotation", "glass_position_world"),
+    writes=("gripper_position_world", "jug_position_world", "water"),
+    backend="sim",
+)
+def move_gripper_to_param(
+    bb: Blackboard,
+    rng: np.random.Generator,
+    *,
+    x: Annotated[float, Param(_X_M[0], _X_M[1], unit="m", doc="gripper x, world frame")] = 0.6,
+    y: Annotated[float, Param(_Y_M[0], _Y_M[1], unit="m", doc="gripper y, world frame")] = 0.0,
+    z: Annotated[float, Param(_Z_M[0], _Z_M[1], unit="m", doc="gripper z, world frame")] = 1.1,
+) -> Literal["success", "failure"]:
+    """Move the gripper to ``(x, y, z)`` in the world frame [m]; a held jug moves with it.
+
+    ``failure`` at random with ``p_fail`` (the planner found no path): nothing moves.
+    """
+    if _random_failure(bb, rng):
+        return "failure"
+    target = (x, y, z)
+    bb["gripper_position_world"] = target
+    if bb["holding_jug"]:
+        bb["jug_position_world"] = target
+        _move_water(bb)
+    return "success"
+
+
+@skill(
+    reads=("holding_jug", "jug_position_world", "glass_position_world"),
+    writes=("gripper_rotation", "water"),
+    backend="sim",
+)
+def rotate_gripper_to_param(
+    bb: Blackboard,
+    rng: np.random.Generator,
+    *,
+    rho: Annotated[float, Param(-_PI, _PI, unit="rad", doc="roll about world x")] = 0.0,
+    phi: Annotated[float, Param(-_PI, _PI, unit="rad", doc="pitch about world y")] = 0.0,
+    theta: Annotated[float, Param(-_PI, _PI, unit="rad", doc="yaw about world z")] = 0.0,
+) -> Literal["success"]:
+    """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad].
+
+    A held jug tilted 60°–120° with its spout over the glass pours into it; tilted that far
+    anywhere else, or further, it spills. Always ``success``.
+    """
+    bb["gripper_rotation"] = (rho, phi, theta)
+    _move_water(bb)
+    return "success"
+
+
+@skill(reads=("water",), backend="sim")
+def check_success(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+    """Look into the glass: ``success`` when the water is in it, ``failure`` otherwise."""
+    return "success" if bb["water"] == "glass" else "failure"
+
+
+SKILLS = (
+    recognise_object,
+    move_to_object,
+    grasp_object,
+    move_gripper_to_param,
+    rotate_gripper_to_param,
+    check_success,
+)
+"""The six skills of section 4.1, in the order the paper lists them."""
+
+
+def register(registry: Registry) -> None:
+    """Add the six pour-water skills (backend ``"sim"``) to ``registry``."""
+    for s in SKILLS:
+        registry.add(s)
