@@ -1,0 +1,417 @@
+"""Robustness analysis: run one FSA many times under a sweep of a task setting.
+
+The paper's figures 7 and 12 run an evolved FSA 5000 times for each failure probability
+from 0 to 1 and plot the mean fitness with standard-deviation bars. :func:`robustness_sweep`
+does that for any FSA and any task module with a numeric setting (``p_fail`` by default)::
+
+    from skillcompose.robustness import robustness_sweep, write_csv, plot_sweep
+
+    rows = robustness_sweep("examples/pour_water_reference.fsa.yaml", "examples.pour_water",
+                            p_fail=[0.0, 0.25, 0.5], reps=1000, seed=0, workers=2)
+    write_csv(rows, "robustness.csv")
+    plot_sweep(rows, "robustness.png")
+
+and ``skillcompose robustness FILE --task T --p-fail 0:1:21 --reps 5000 -o fig.png`` from the
+command line.
+
+How it runs:
+
+- Each sweep point rebuilds the task with ``make_task(**settings, p_fail=value)`` (its
+  :class:`~skillcompose.task.TaskRef`), in the calling process or in worker processes.
+- Repetition ``r`` uses the generator of ``SeedSequence(seed).spawn(reps)[r]`` at *every*
+  point (common random numbers): the curve is smooth, a point's numbers do not depend on
+  which other points are swept, and the table is identical for any number of workers.
+- The FSA runs with its own ``step_limit`` (what the file says is what is swept) unless
+  ``step_limit`` is given.
+- ``std`` is the sample standard deviation (``ddof=1``) of the fitness over the repetitions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import itertools
+import math
+import multiprocessing
+import os
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import SkillcomposeError
+from .executor import compile_fsa
+from .fsa import ERROR, FSA, TIMEOUT
+from .fsafile import load_fsa
+from .task import Task, TaskRef, parse_settings
+
+__all__ = [
+    "RobustnessError",
+    "SweepRow",
+    "format_table",
+    "parse_values",
+    "plot_sweep",
+    "register_cli",
+    "robustness_sweep",
+    "table",
+    "write_csv",
+]
+
+
+class RobustnessError(SkillcomposeError, ValueError):
+    """A robustness sweep cannot run as asked (bad values, reps, workers or task)."""
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """The statistics of ``reps`` runs at one value of the swept setting."""
+
+    setting: str
+    value: float
+    reps: int
+    mean: float
+    std: float
+    min: float
+    max: float
+    mean_steps: float
+    outcomes: Mapping[str, int] = field(default_factory=dict)
+
+    def rate(self, outcome: str) -> float:
+        """Fraction of the runs that ended in ``outcome``."""
+        return self.outcomes.get(outcome, 0) / self.reps
+
+    @property
+    def success_rate(self) -> float:
+        return self.rate("success")
+
+    @property
+    def timeout_rate(self) -> float:
+        return self.rate(TIMEOUT)
+
+
+# ---------------------------------------------------------------------------------------
+# the sweep
+# ---------------------------------------------------------------------------------------
+def robustness_sweep(
+    fsa: FSA | str | os.PathLike[str],
+    task: str | Task,
+    p_fail: Iterable[float],
+    *,
+    reps: int = 5000,
+    seed: int = 0,
+    workers: int = 1,
+    setting: str = "p_fail",
+    settings: Mapping[str, Any] | None = None,
+    backend: str | None = None,
+    step_limit: int | None = None,
+) -> list[SweepRow]:
+    """Run ``fsa`` ``reps`` times at each value of the task setting ``setting``.
+
+    - ``fsa``: an FSA or the path of an FSA file.
+    - ``task``: a task module (dotted name or ``.py`` path), or a :class:`Task` made by
+      :func:`~skillcompose.task.load_task` (it knows how to rebuild itself).
+    - ``p_fail``: the values of ``setting`` to sweep (the failure probability by default).
+    - ``settings``: the task's other settings, kept fixed.
+    - ``workers``: processes; the rows are the same for any number.
+
+    Returns one :class:`SweepRow` per value, in the order given.
+    """
+    values = [_check_value(v, setting) for v in p_fail]
+    if not values:
+        raise RobustnessError(f"no values of {setting} to sweep; give at least one")
+    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
+        raise RobustnessError(f"reps={reps!r} must be a positive whole number, e.g. 5000")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise RobustnessError(f"workers={workers!r} must be a positive whole number")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise RobustnessError(f"seed={seed!r} must be a whole number >= 0")
+    ref = _task_ref(task, settings)
+    machine = fsa if isinstance(fsa, FSA) else load_fsa(fsa)
+    if step_limit is not None:
+        machine = machine.replace(step_limit=step_limit)
+    machine = machine.replace(source=None)  # plain data, cheap to send to workers
+    # Compile once here so that an FSA that does not fit the task fails before any work.
+    first = _build(ref, setting, values[0])
+    compile_fsa(machine, first.registry, backend or first.backend)
+
+    jobs = [
+        _Chunk(machine, ref, setting, v, backend, seed, start, stop)
+        for v in values
+        for start, stop in _chunks(reps, workers, len(values))
+    ]
+    if workers == 1 or len(jobs) == 1:
+        parts = [_run_chunk(job) for job in jobs]
+    else:
+        ctx = multiprocessing.get_context()  # the platform default start method
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
+            parts = list(pool.map(_run_chunk, jobs))
+
+    rows = []
+    per_value = len(jobs) // len(values)
+    for k, v in enumerate(values):
+        mine = parts[k * per_value:(k + 1) * per_value]
+        fit = np.concatenate([p[0] for p in mine])
+        steps = np.concatenate([p[1] for p in mine])
+        counts: dict[str, int] = {}
+        for p in mine:
+            for o, n in p[2].items():
+                counts[o] = counts.get(o, 0) + n
+        rows.append(SweepRow(
+            setting=setting,
+            value=v,
+            reps=reps,
+            mean=float(np.mean(fit)),
+            std=float(np.std(fit, ddof=1)) if reps > 1 else 0.0,
+            min=float(np.min(fit)),
+            max=float(np.max(fit)),
+            mean_steps=float(np.mean(steps)),
+            outcomes=dict(sorted(counts.items())),
+        ))
+    return rows
+
+
+@dataclass(frozen=True)
+class _Chunk:
+    fsa: FSA
+    ref: TaskRef
+    setting: str
+    value: float
+    backend: str | None
+    seed: int
+    start: int
+    stop: int
+
+
+def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """Repetitions ``start..stop-1`` at one value: fitness, steps and outcome counts."""
+    task = _build(job.ref, job.setting, job.value)
+    compiled = compile_fsa(job.fsa, task.registry, job.backend or task.backend)
+    n = job.stop - job.start
+    fit = np.empty(n)
+    steps = np.empty(n, dtype=np.int64)
+    counts: dict[str, int] = {}
+    setup, score, run = task.setup, task.score, compiled.run
+    for k in range(n):
+        rng = np.random.default_rng(np.random.SeedSequence(job.seed, spawn_key=(job.start + k,)))
+        bb = setup(rng)
+        result = run(bb, rng)
+        fit[k] = score(result, bb)
+        steps[k] = result.steps
+        counts[result.outcome] = counts.get(result.outcome, 0) + 1
+    return fit, steps, counts
+
+
+def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
+    """Split ``reps`` so that the points times their chunks keep ``workers`` busy."""
+    if workers == 1:
+        return [(0, reps)]
+    per_point = max(1, min(reps // 500 or 1, math.ceil(4 * workers / points)))
+    bounds = np.linspace(0, reps, per_point + 1).round().astype(int)
+    return [(int(a), int(b)) for a, b in itertools.pairwise(bounds.tolist()) if b > a]
+
+
+def _build(ref: TaskRef, setting: str, value: float) -> Task:
+    return TaskRef(ref.module, {**ref.settings, setting: value}).build()
+
+
+def _task_ref(task: str | Task, settings: Mapping[str, Any] | None) -> TaskRef:
+    if isinstance(task, str):
+        return TaskRef(task, dict(settings or {}))
+    if isinstance(task, Task):
+        if task.ref is None:
+            raise RobustnessError(
+                f"task {task.name!r} cannot be rebuilt for each sweep point: it was not made "
+                "by load_task(); pass the task module's name instead, e.g. "
+                "robustness_sweep(fsa, 'examples.pour_water', ...)"
+            )
+        return TaskRef(task.ref.module, {**task.ref.settings, **(settings or {})})
+    raise RobustnessError(
+        f"task must be a task module name or a Task, got {type(task).__name__}"
+    )
+
+
+def _check_value(v: Any, setting: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or \
+            not math.isfinite(float(v)):
+        raise RobustnessError(f"sweep value {v!r} of {setting} must be a finite number")
+    return float(v)
+
+
+def parse_values(text: str) -> list[float]:
+    """``"0:1:21"`` → 21 evenly spaced values from 0 to 1 inclusive; ``"0,0.2,0.5"`` → those.
+
+    Raises :class:`RobustnessError` with the accepted forms on anything else.
+    """
+    forms = "write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. 0,0.2,0.5)"
+    text = text.strip()
+    try:
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise ValueError(text)
+            start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
+            if count < 1:
+                raise RobustnessError(f"sweep {text!r}: COUNT must be at least 1; {forms}")
+            if count == 1:
+                return [start]
+            return [round(float(v), 12) for v in np.linspace(start, stop, count)]
+        values = [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise RobustnessError(f"cannot read the sweep {text!r}; {forms}") from None
+    if not values:
+        raise RobustnessError(f"the sweep {text!r} has no values; {forms}")
+    return values
+
+
+# ---------------------------------------------------------------------------------------
+# output
+# ---------------------------------------------------------------------------------------
+_FIRST_OUTCOMES = ("success", "failure", TIMEOUT, ERROR)
+
+
+def _outcome_columns(rows: Sequence[SweepRow]) -> list[str]:
+    seen = {o for r in rows for o in r.outcomes}
+    rest = sorted(seen - set(_FIRST_OUTCOMES))
+    return [*_FIRST_OUTCOMES, *rest]
+
+
+def table(rows: Sequence[SweepRow]) -> tuple[list[str], list[list[str]]]:
+    """Header and formatted cells of the CSV table."""
+    if not rows:
+        raise RobustnessError("no rows to write")
+    outs = _outcome_columns(rows)
+    header = [rows[0].setting, "reps", "mean", "std", "min", "max", "mean_steps"]
+    header += [f"{o}_rate" for o in outs]
+    body = []
+    for r in rows:
+        cells = [f"{r.value:.10g}", str(r.reps)]
+        cells += [f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps)]
+        cells += [f"{r.rate(o):.6g}" for o in outs]
+        body.append(cells)
+    return header, body
+
+
+def write_csv(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
+    """Write the sweep as CSV: the setting, reps, mean, std, min, max, mean_steps, and the
+    rate of each outcome (success, failure, timeout, error, then any other)."""
+    header, body = table(rows)
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with p.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(body)
+    return p
+
+
+def format_table(rows: Sequence[SweepRow]) -> str:
+    """The table as aligned text, for a terminal."""
+    header, body = table(rows)
+    keep = [0, 1, 2, 3, 6, *range(7, len(header))]
+    cols = [[header[i], *[b[i] for b in body]] for i in keep]
+    widths = [max(len(c) for c in col) for col in cols]
+    lines = []
+    for k in range(len(body) + 1):
+        lines.append("  ".join(col[k].rjust(w) for col, w in zip(cols, widths, strict=True)))
+    return "\n".join(lines)
+
+
+def plot_sweep(
+    rows: Sequence[SweepRow], path: str | os.PathLike[str], *, title: str | None = None
+) -> Path:
+    """Plot mean fitness with standard-deviation bars against the swept setting (figure 7),
+    and the success rate on a second axis. The format follows the suffix (.png, .svg, .pdf).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    if not rows:
+        raise RobustnessError("no rows to plot")
+    x = [r.value for r in rows]
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.errorbar(x, [r.mean for r in rows], yerr=[r.std for r in rows], fmt="o-", ms=4,
+                capsize=3, color="tab:blue", label="fitness, mean ± std")
+    ax.set_xlabel(f"{rows[0].setting} (failure probability of the skills)"
+                  if rows[0].setting == "p_fail" else rows[0].setting)
+    ax.set_ylabel(f"fitness (mean ± std of {rows[0].reps} runs)")
+    ax.grid(True, alpha=0.3)
+    ax2 = ax.twinx()
+    ax2.plot(x, [r.success_rate for r in rows], "s--", ms=3, color="tab:green",
+             label="success rate")
+    ax2.set_ylim(-0.02, 1.02)
+    ax2.set_ylabel("success rate")
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, loc="center left")
+    if title:
+        ax.set_title(title)
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(p, dpi=120)
+    return p
+
+
+# ---------------------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------------------
+def register_cli(subparsers: Any) -> None:
+    """Add ``skillcompose robustness`` to the command line."""
+    p = subparsers.add_parser(
+        "robustness",
+        help="run an FSA file under a sweep of a task's failure probability (figure 7)",
+        description="Run FILE --reps times at each value of the task setting --setting "
+        "(p_fail by default), in parallel, and write the table (CSV) and the plot of mean "
+        "fitness with standard-deviation bars.",
+    )
+    p.add_argument("file", help="the FSA file (YAML)")
+    p.add_argument("--task", required=True, metavar="TASK",
+                   help="the task module (dotted name or .py file) with make_task(**settings)")
+    p.add_argument("--p-fail", dest="values", default="0:1:21", metavar="SWEEP",
+                   help="values: START:STOP:COUNT or a comma list (default 0:1:21)")
+    p.add_argument("--setting", default="p_fail",
+                   help="the task setting the values go to (default p_fail)")
+    p.add_argument("--reps", type=int, default=5000, help="runs per value (default 5000)")
+    p.add_argument("-o", "--output", metavar="FIG",
+                   help="the plot: .png, .svg or .pdf (default: no plot)")
+    p.add_argument("--csv", metavar="CSV",
+                   help="the table (default: the plot's name with .csv, when -o is given)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the repetitions (default 0)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help="processes (default: the number of CPUs); results do not depend on it")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   dest="settings", help="another task setting, kept fixed; repeatable")
+    p.add_argument("--backend", help="which implementation of each skill to run")
+    p.add_argument("--step-limit", type=int,
+                   help="override the FSA file's step_limit")
+    p.set_defaults(func=cmd_robustness)
+
+
+def cmd_robustness(args: argparse.Namespace) -> int:
+    values = parse_values(args.values)
+    settings = parse_settings(args.settings)
+    if args.setting in settings:
+        raise RobustnessError(
+            f"--set {args.setting}=... conflicts with the sweep of {args.setting}; drop it"
+        )
+    rows = robustness_sweep(
+        args.file, args.task, values, reps=args.reps, seed=args.seed, workers=args.workers,
+        setting=args.setting, settings=settings, backend=args.backend,
+        step_limit=args.step_limit,
+    )
+    print(format_table(rows))
+    csv_path = args.csv
+    if csv_path is None and args.output:
+        csv_path = str(Path(args.output).with_suffix(".csv"))
+    if csv_path:
+        write_csv(rows, csv_path)
+        print(f"table: {csv_path}", file=sys.stderr)
+    if args.output:
+        plot_sweep(rows, args.output, title=f"{Path(args.file).name} on {args.task}")
+        print(f"plot: {args.output}", file=sys.stderr)
+    return 0
