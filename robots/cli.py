@@ -44,7 +44,9 @@ def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
         return model.tucked_pose(), Scene()
     path = Path(spec)
     if not path.is_file():
-        raise InvalidConfiguration(f"--config {spec!r}: not 'neutral', 'tucked' or an existing file")
+        raise InvalidConfiguration(
+            f"--config {spec!r}: not 'neutral', 'tucked' or an existing file"
+        )
     try:
         raw = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
@@ -66,7 +68,9 @@ def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
     boxes = []
     for i, entry in enumerate(raw.get("boxes", [])):
         if not isinstance(entry, dict) or not set(entry) <= _BOX_KEYS:
-            raise InvalidConfiguration(f"{path}: boxes[{i}] keys must be within {sorted(_BOX_KEYS)}")
+            raise InvalidConfiguration(
+                f"{path}: boxes[{i}] keys must be within {sorted(_BOX_KEYS)}"
+            )
         boxes.append(
             Box(
                 tuple(entry["center_m"]),

@@ -80,7 +80,9 @@ class Box:
         """Express world points (k x 3) in the box frame [m]."""
         c, s = np.cos(self.yaw_rad), np.sin(self.yaw_rad)
         rel = np.atleast_2d(points_world_m) - np.asarray(self.center_m)
-        return np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1], rel[:, 2]])
+        return np.column_stack(
+            [c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1], rel[:, 2]]
+        )
 
     def signed_distance_m(self, points_world_m: FloatArray) -> FloatArray:
         """Exact signed distance [m] from each point to the box (negative inside)."""
@@ -106,7 +108,10 @@ class Box:
             return False
         a, b = self.corners_xy_m(), other.corners_xy_m()
         for yaw in (self.yaw_rad, other.yaw_rad):
-            for axis in (np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])):
+            for axis in (
+                np.array([np.cos(yaw), np.sin(yaw)]),
+                np.array([-np.sin(yaw), np.cos(yaw)]),
+            ):
                 pa, pb = a @ axis, b @ axis
                 if pa.max() + margin_m < pb.min() or pb.max() + margin_m < pa.min():
                     return False
@@ -152,12 +157,16 @@ def base_box(chain: KinematicChain, coordinates: FloatArray) -> Box:
     )
 
 
-def arm_spheres(chain: KinematicChain, coordinates: FloatArray) -> tuple[FloatArray, FloatArray, list[str]]:
+def arm_spheres(
+    chain: KinematicChain, coordinates: FloatArray
+) -> tuple[FloatArray, FloatArray, list[str]]:
     """Sphere centres (k x 3) [m], radii (k,) [m] and part names of the chain's arms."""
     names: list[str] = []
     for arm in chain.arms:
         prefix = ARM_JOINTS[arm][0][:2]
-        names += [prefix + s for s in ("shoulder_lift_joint", "elbow_flex_joint", "wrist_flex_joint")]
+        names += [
+            prefix + s for s in ("shoulder_lift_joint", "elbow_flex_joint", "wrist_flex_joint")
+        ]
         names.append(TOOL_FRAMES[arm])
     # joints are frames too in Pinocchio models built from URDF
     origins = chain.frame_origins_world(names, coordinates)

@@ -22,7 +22,16 @@ from robots.casadi_kinematics import CasadiKinematics
 from robots.collision import _ARM_SEGMENTS, BASE_RADIUS_M, Box, Scene, check_collisions
 from robots.errors import InvalidConfiguration
 from robots.ik import IKResult, IKStatus, IKTarget
-from robots.model import ARM_JOINTS, ARMS, ROBOT_FRAME, TOOL_FRAMES, Arm, FloatArray, KinematicChain, RobotModel
+from robots.model import (
+    ARM_JOINTS,
+    ARMS,
+    ROBOT_FRAME,
+    TOOL_FRAMES,
+    Arm,
+    FloatArray,
+    KinematicChain,
+    RobotModel,
+)
 
 _TOLERANCE = 1e-5
 
@@ -36,7 +45,7 @@ def _box_distance_squared(point: ca.SX, box: ca.SX, planar: bool = False) -> ca.
     c, s = ca.cos(box[6]), ca.sin(box[6])
     dx, dy, dz = point[0] - box[0], point[1] - box[1], point[2] - box[2]
     local = [c * dx + s * dy, -s * dx + c * dy, dz]
-    total = 0
+    total = ca.SX(0)
     for axis in range(2 if planar else 3):
         gap = ca.fmax(_smooth_abs(local[axis]) - box[3 + axis], 0)
         total = total + gap * gap
@@ -87,7 +96,9 @@ class ConstrainedIK:
                 goal_r = ca.SX.sym(f"{arm}_rotation", 3, 3)
                 params.append(ca.vec(goal_r))
                 rel = goal_r.T @ tool.rotation
-                constraints.append(ca.vertcat(rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]))
+                constraints.append(
+                    ca.vertcat(rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1])
+                )
                 lower += [0.0] * 3
                 upper += [0.0] * 3
                 constraints.append(ca.trace(rel))
@@ -112,7 +123,7 @@ class ConstrainedIK:
             weights[:3] = 0.1
         cost = ca.sumsqr(ca.DM(np.sqrt(weights)) * (theta - reference)) * 1e-3
         nlp = {"x": theta, "p": ca.vertcat(*params), "f": cost, "g": ca.vertcat(*constraints)}
-        options = {
+        options: dict[str, bool | int | float | str] = {
             "print_time": False,
             "ipopt.print_level": 0,
             "ipopt.sb": "yes",
@@ -213,7 +224,9 @@ class ConstrainedIK:
             status, why = IKStatus.COLLISION, f"collides: {report.pairs}"
         else:
             status, why = IKStatus.SUCCESS, ""
-        return IKResult(status, theta, pos_err, rot_err, iterations, 0, time.perf_counter() - start, why)
+        return IKResult(
+            status, theta, pos_err, rot_err, iterations, 0, time.perf_counter() - start, why
+        )
 
 
 def _nominal_arm(arm: Arm) -> FloatArray:
@@ -297,9 +310,7 @@ def solve_both_arms(
     problem = ConstrainedIK(
         chain=chain, arms=ARMS, n_boxes=max(1, len(scene.boxes)), margin_m=margin_m
     )
-    initial = np.concatenate(
-        [[0.0, 0.0, 0.0], [0.15], _nominal_arm("left"), _nominal_arm("right")]
-    )
+    initial = np.concatenate([[0.0, 0.0, 0.0], [0.15], _nominal_arm("left"), _nominal_arm("right")])
     fixed: dict[str, float] = {}
     if base_xy_yaw is not None:
         initial[:3] = base_xy_yaw
@@ -307,4 +318,4 @@ def solve_both_arms(
     return problem.solve(targets, scene, initial, fixed=fixed)
 
 
-__all__ = ["ConstrainedIK", "OptimisedBasePlacer", "TOOL_FRAMES", "solve_both_arms"]
+__all__ = ["TOOL_FRAMES", "ConstrainedIK", "OptimisedBasePlacer", "solve_both_arms"]

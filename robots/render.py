@@ -1,24 +1,21 @@
 """Pictures of a robot configuration with a table and boxes (matplotlib 3-D, PNG).
 
 Draws the base footprint, the kinematic tree as segments between joint origins,
-small axes at each tool frame, the arm collision spheres (optional) and the
-scene's boxes.
+small axes at each tool frame and the scene's boxes. Uses matplotlib's
+object API with the Agg canvas: no pyplot, no global backend switch.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+import pinocchio as pin
+from matplotlib.figure import Figure
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # type: ignore[import-untyped]
 
-matplotlib.use("Agg")  # headless: files only
-import matplotlib.pyplot as plt  # noqa: E402 (backend must be chosen first)
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
-
-from robots.collision import BASE_HALF_EXTENTS_M, Box, Scene  # noqa: E402
-from robots.model import ARMS, TOOL_FRAMES, FloatArray, RobotModel, RobotPose  # noqa: E402
+from robots.collision import BASE_HALF_EXTENTS_M, Box, Scene
+from robots.model import ARMS, TOOL_FRAMES, FloatArray, RobotModel, RobotPose
 
 
 def _box_faces(box: Box) -> list[FloatArray]:
@@ -48,7 +45,7 @@ def render_configuration(
     data = full.createData()
     q = model.full_q(pose)
     pin.framesForwardKinematics(full, data, q)
-    fig = plt.figure(figsize=(8, 7))
+    fig = Figure(figsize=(8, 7))
     ax = fig.add_subplot(projection="3d")
     # kinematic tree: segment from each joint to its parent
     for jid in range(2, full.njoints):
@@ -88,9 +85,11 @@ def render_configuration(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    ax.set_title(title or f"PR2  base ({x:.2f} m, {y:.2f} m, {yaw:.2f} rad)  torso {pose.torso_height_m:.2f} m")
+    ax.set_title(
+        title
+        or f"PR2  base ({x:.2f} m, {y:.2f} m, {yaw:.2f} rad)  torso {pose.torso_height_m:.2f} m"
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -101,8 +101,8 @@ def test_both_arms_at_once(pr2: RobotModel) -> None:
     left = chain.transform_tool_to_world("left", theta)
     right = chain.transform_tool_to_world("right", theta)
     targets = {
-        "left": IKTarget(left.translation + [0.1, 0.0, 0.05], left.rotation),
-        "right": IKTarget(right.translation + [0.05, -0.05, 0.0], right.rotation),
+        "left": IKTarget(left.translation + np.array([0.1, 0.0, 0.05]), left.rotation),
+        "right": IKTarget(right.translation + np.array([0.05, -0.05, 0.0]), right.rotation),
     }
     result = solve_both_arms(pr2, targets, base_xy_yaw=(0.0, 0.0, 0.0))  # type: ignore[arg-type]
     assert result.success, result
