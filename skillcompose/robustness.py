@@ -78,7 +78,15 @@ class SweepRow:
     min: float
     max: float
     mean_steps: float
+    solved: int
     outcomes: Mapping[str, int] = field(default_factory=dict)
+
+    @property
+    def solved_rate(self) -> float:
+        """Fraction of the runs whose fitness reached the task's target (``task.solved``):
+        for pouring water, the water is in the glass. A run can end in ``success`` without
+        solving the task when an FSA routes an outcome straight to the terminal."""
+        return self.solved / self.reps
 
     def rate(self, outcome: str) -> float:
         """Fraction of the runs that ended in ``outcome``."""
@@ -169,6 +177,7 @@ def robustness_sweep(
             min=float(np.min(fit)),
             max=float(np.max(fit)),
             mean_steps=float(np.mean(steps)),
+            solved=sum(p[3] for p in mine),
             outcomes=dict(sorted(counts.items())),
         ))
     return rows
@@ -186,23 +195,25 @@ class _Chunk:
     stop: int
 
 
-def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """Repetitions ``start..stop-1`` at one value: fitness, steps and outcome counts."""
+def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int]:
+    """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
     task = _build(job.ref, job.setting, job.value)
     compiled = compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
     fit = np.empty(n)
     steps = np.empty(n, dtype=np.int64)
     counts: dict[str, int] = {}
-    setup, score, run = task.setup, task.score, compiled.run
+    solved = 0
+    setup, score, run, is_solved = task.setup, task.score, compiled.run, task.solved
     for k in range(n):
         rng = np.random.default_rng(np.random.SeedSequence(job.seed, spawn_key=(job.start + k,)))
         bb = setup(rng)
         result = run(bb, rng)
-        fit[k] = score(result, bb)
+        fit[k] = f = score(result, bb)
+        solved += is_solved(f)
         steps[k] = result.steps
         counts[result.outcome] = counts.get(result.outcome, 0) + 1
-    return fit, steps, counts
+    return fit, steps, counts, solved
 
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
@@ -284,20 +295,21 @@ def table(rows: Sequence[SweepRow]) -> tuple[list[str], list[list[str]]]:
     if not rows:
         raise RobustnessError("no rows to write")
     outs = _outcome_columns(rows)
-    header = [rows[0].setting, "reps", "mean", "std", "min", "max", "mean_steps"]
+    header = [rows[0].setting, "reps", "mean", "std", "min", "max", "mean_steps", "solved_rate"]
     header += [f"{o}_rate" for o in outs]
     body = []
     for r in rows:
         cells = [f"{r.value:.10g}", str(r.reps)]
-        cells += [f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps)]
+        cells += [f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps, r.solved_rate)]
         cells += [f"{r.rate(o):.6g}" for o in outs]
         body.append(cells)
     return header, body
 
 
 def write_csv(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
-    """Write the sweep as CSV: the setting, reps, mean, std, min, max, mean_steps, and the
-    rate of each outcome (success, failure, timeout, error, then any other)."""
+    """Write the sweep as CSV: the setting, reps, mean, std, min, max, mean_steps,
+    solved_rate, and the rate of each outcome (success, failure, timeout, error, then any
+    other)."""
     header, body = table(rows)
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -311,7 +323,7 @@ def write_csv(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
 def format_table(rows: Sequence[SweepRow]) -> str:
     """The table as aligned text, for a terminal."""
     header, body = table(rows)
-    keep = [0, 1, 2, 3, 6, *range(7, len(header))]
+    keep = [0, 1, 2, 3, 6, *range(7, len(header))]  # leave min and max to the CSV
     cols = [[header[i], *[b[i] for b in body]] for i in keep]
     widths = [max(len(c) for c in col) for col in cols]
     lines = []
@@ -324,7 +336,8 @@ def plot_sweep(
     rows: Sequence[SweepRow], path: str | os.PathLike[str], *, title: str | None = None
 ) -> Path:
     """Plot mean fitness with standard-deviation bars against the swept setting (figure 7),
-    and the success rate on a second axis. The format follows the suffix (.png, .svg, .pdf).
+    and the solved rate (runs that reached the task's target) on a second axis. The format
+    follows the suffix (.png, .svg, .pdf).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -342,10 +355,10 @@ def plot_sweep(
     ax.set_ylabel(f"fitness (mean ± std of {rows[0].reps} runs)")
     ax.grid(True, alpha=0.3)
     ax2 = ax.twinx()
-    ax2.plot(x, [r.success_rate for r in rows], "s--", ms=3, color="tab:green",
-             label="success rate")
+    ax2.plot(x, [r.solved_rate for r in rows], "s--", ms=3, color="tab:green",
+             label="solved rate")
     ax2.set_ylim(-0.02, 1.02)
-    ax2.set_ylabel("success rate")
+    ax2.set_ylabel("fraction of runs solved")
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="center left")

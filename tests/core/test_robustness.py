@@ -31,9 +31,10 @@ def test_sweep_of_the_reference_fsa_on_a_few_points() -> None:
     assert all(isinstance(r, SweepRow) and r.reps == 400 for r in rows)
     zero, half, high, one = rows
     assert zero.mean == 0.0 and zero.std == 0.0 and zero.success_rate == 1.0
-    assert zero.mean_steps == 6.0
+    assert zero.mean_steps == 6.0 and zero.solved_rate == 1.0
     assert half.success_rate > 0.98  # the paper: solved almost always below 0.5
     assert 0.0 < high.success_rate < 0.5 and high.timeout_rate > 0.5 and high.mean > 1.0
+    assert high.solved_rate == high.success_rate  # the reference succeeds only by pouring
     # p_fail = 1: MoveToObject never succeeds, so the jug is never held: fitness 20
     assert one.mean == 20.0 and one.timeout_rate == 1.0 and one.mean_steps == 20.0
     for r in rows:
@@ -61,6 +62,13 @@ def test_sweep_accepts_an_fsa_object_and_a_loaded_task() -> None:
     rows = robustness_sweep(fsa, task, [0.0, 1.0], reps=50)
     for r in rows:  # never grasps: CheckSuccess fails, the jug is not held
         assert r.mean == 20.0 and r.rate("failure") == 1.0 and r.mean_steps == 2.0
+
+
+def test_success_that_does_not_solve_the_task_is_told_apart() -> None:
+    """An FSA that declares success without pouring: outcome success, never solved."""
+    fsa = FSA({"R": State("RecogniseObject", {}, {"success": "success"})}, "R", step_limit=20)
+    (row,) = robustness_sweep(fsa, TASK, [0.2], reps=30)
+    assert row.success_rate == 1.0 and row.solved_rate == 0.0 and row.mean == 20.0
 
 
 def test_step_limit_override() -> None:
@@ -112,7 +120,9 @@ def test_csv_and_plot(tmp_path: Path) -> None:
     path = write_csv(rows, tmp_path / "sweep.csv")
     with path.open() as f:
         table = list(csv.DictReader(f))
-    assert list(table[0])[:7] == ["p_fail", "reps", "mean", "std", "min", "max", "mean_steps"]
+    assert list(table[0])[:8] == [
+        "p_fail", "reps", "mean", "std", "min", "max", "mean_steps", "solved_rate"
+    ]
     assert {"success_rate", "failure_rate", "timeout_rate", "error_rate"} <= set(table[0])
     assert float(table[1]["mean"]) == pytest.approx(rows[1].mean, rel=1e-5)
     assert float(table[1]["success_rate"]) == rows[1].success_rate
