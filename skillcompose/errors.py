@@ -21,6 +21,7 @@ __all__ = [
     "Problem",
     "RegistryError",
     "SkillDefinitionError",
+    "SkillProtocolError",
     "SkillcomposeError",
     "UndeclaredOutcomeError",
     "UnknownSkillError",
@@ -67,6 +68,11 @@ class BlackboardTypeError(SkillcomposeError, TypeError):
 
 class UndeclaredOutcomeError(SkillcomposeError, ValueError):
     """A skill returned an outcome it did not declare."""
+
+
+class SkillProtocolError(SkillcomposeError, RuntimeError):
+    """A long-running skill broke the start / tick / cancel protocol, or a run was misused
+    (for example a generator skill yielded something other than ``"running"``)."""
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,10 @@ state's skill implementation to its parameters, and turns the transition functio
 integer tables. :meth:`CompiledFSA.run` then executes it on a blackboard with a
 ``numpy.random.Generator``: each step calls one skill and follows the outcome, until a
 terminal outcome, or ``timeout`` after ``step_limit`` steps, or ``error`` when a skill raises.
+
+That is the run-to-completion mode. :meth:`CompiledFSA.start` begins a tick-wise run instead
+(:class:`~skillcompose.ticking.FSARun`): each tick advances the current skill by one tick, so
+long-running skills do not block the caller, and the run can be preempted between ticks.
 """
 
 from __future__ import annotations
@@ -23,7 +27,8 @@ from .fsa import ERROR, FSA, TIMEOUT
 
 if TYPE_CHECKING:
     from .registry import Registry
-    from .skill import SkillFn
+    from .skill import Skill, SkillFn
+    from .ticking import FSARun
 
 __all__ = [
     "CompiledFSA",
@@ -84,6 +89,7 @@ class CompiledFSA:
     """
 
     __slots__ = (
+        "_impls",
         "_key_types",
         "_start",
         "_table",
@@ -103,8 +109,10 @@ class CompiledFSA:
         skills: list[str],
         key_types: dict[str, Any],
         backend: str,
+        impls: list[tuple[Skill, dict[str, Any]]] | None = None,
     ) -> None:
         self.fsa = fsa
+        self._impls = impls or []  # per state: (implementation, resolved params)
         self._table = table
         self.names = names
         self.skills = skills
@@ -144,6 +152,28 @@ class CompiledFSA:
             return RunResult(ERROR, r.steps, self.names[r.state_index], error=exc)
         finally:
             bb._client = None
+
+    def start(
+        self,
+        bb: Blackboard | None = None,
+        rng: np.random.Generator | int | None = None,
+        *,
+        trace: bool = False,
+        propagate: bool = False,
+        time_limits: Mapping[str, float] | None = None,
+        clock: Callable[[], float] | None = None,
+    ) -> FSARun:
+        """Begin a tick-wise run: call ``.tick()`` on the result until it is not ``"running"``.
+
+        ``time_limits`` maps state names to wall-clock limits [s]; see
+        :class:`~skillcompose.ticking.FSARun`.
+        """
+        from .ticking import FSARun
+
+        return FSARun(
+            self, bb, rng, trace=trace, propagate=propagate, time_limits=time_limits,
+            clock=clock,
+        )
 
     def outcome(self, bb: Blackboard, rng: np.random.Generator) -> tuple[str, int]:
         """(outcome, steps) of one run, raising on skill errors: the evaluation hot path."""
@@ -265,6 +295,7 @@ def compile_fsa(fsa: FSA, registry: Registry, backend: str | None = None) -> Com
     skills: list[str] = []
     key_types: dict[str, Any] = {}
     bound: dict[str, SkillFn] = {}
+    impls: list[tuple[Skill, dict[str, Any]]] = []
     for sname in names:
         st = fsa.states[sname]
         impl = registry.resolve(st.skill, be)
@@ -276,10 +307,11 @@ def compile_fsa(fsa: FSA, registry: Registry, backend: str | None = None) -> Com
         call: Callable[..., str] = functools.partial(fn, **params) if params else fn
         nxt = {o: (index[t] if t in index else term[t]) for o, t in st.transitions.items()}
         table.append((call, spec.access(), nxt))
+        impls.append((impl, params))
         skills.append(st.skill)
         for k, t in spec.key_types.items():
             key_types.setdefault(k, t)
-    return CompiledFSA(fsa, table, names, skills, key_types, be)
+    return CompiledFSA(fsa, table, names, skills, key_types, be, impls)
 
 
 def run_fsa(

@@ -5,10 +5,24 @@ are such callables, for skills with set-up or state). The decorator reads its de
 and returns a :class:`Skill`, which holds an immutable :class:`SkillSpec` (name, outcomes,
 parameters, blackboard keys) and the implementation. The executor calls the implementation
 directly, so a skill costs one Python call per step and nothing more.
+
+A *long-running* skill (a grasp, a base move) is declared the same way, as either
+
+- a class with ``start(self, bb, rng, *, params...)``, ``tick(self, bb, rng) ->
+  Literal["running", outcomes...]`` and optionally ``cancel(self, bb)``: one instance per
+  activation (its ``__init__`` takes no arguments); or
+- a generator function ``f(bb, rng, *, params...) -> Generator[str, None, Literal[...]]``
+  that yields ``"running"`` (or nothing) until it returns its outcome; cancelling it closes
+  the generator, so its ``finally:`` blocks are its cancel hook.
+
+The tick-wise executor (:mod:`skillcompose.ticking`) ticks them; run-to-completion mode ticks
+them in a loop until they finish, so one FSA runs in both modes.
 """
 
 from __future__ import annotations
 
+import collections.abc
+import functools
 import inspect
 import re
 import typing
@@ -21,13 +35,17 @@ import numpy as np
 from .blackboard import Access, Blackboard
 from .errors import ParamError, SkillDefinitionError
 from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
+from .ticking import RUNNING, Starter, driven, start_generator, start_instance
 
-__all__ = ["Skill", "SkillFn", "SkillSpec", "skill"]
+__all__ = ["LONG_RUNNING_KINDS", "Skill", "SkillFn", "SkillSpec", "skill"]
 
 SkillFn = Callable[..., str]
 """``f(bb, rng, **params) -> outcome``."""
 
 KeyDecl = Iterable[str] | Mapping[str, type | tuple[type, ...]]
+
+LONG_RUNNING_KINDS = ("ticking", "generator")
+"""Skill kinds the tick-wise executor ticks: start/tick/cancel classes and generators."""
 
 
 @dataclass(frozen=True)
@@ -95,7 +113,7 @@ class Skill:
     keys, which is handy in tests: ``move_to_object(bb, rng, approach=0.2)``.
     """
 
-    __slots__ = ("_instance", "backend", "impl", "is_class", "spec")
+    __slots__ = ("_instance", "backend", "impl", "is_class", "kind", "spec")
 
     def __init__(
         self, spec: SkillSpec, impl: Any, *, backend: str = "default", is_class: bool = False
@@ -104,14 +122,35 @@ class Skill:
         self.impl = impl
         self.backend = backend
         self.is_class = is_class
+        self.kind = _kind(impl, is_class)
+        """``function``, ``instance`` (callable class), ``ticking`` or ``generator``."""
         self._instance: Any = None
 
     @property
     def name(self) -> str:
         return self.spec.name
 
+    @property
+    def long_running(self) -> bool:
+        """True for skills ticked until they finish (start/tick classes, generators)."""
+        return self.kind in LONG_RUNNING_KINDS
+
+    def starter(self, backend: str | None = None) -> Starter | None:
+        """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
+        if self.kind == "ticking":
+            return functools.partial(start_instance, self.impl)
+        if self.kind == "generator":
+            return functools.partial(start_generator, self.impl, self.name)
+        return None
+
     def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
-        """The callable the executor runs: the function, or the class's one instance."""
+        """The callable the executor runs: the function, or the class's one instance.
+
+        A long-running skill binds to a function that ticks it until it finishes.
+        """
+        start = self.starter(backend)
+        if start is not None:
+            return driven(start)
         if not self.is_class:
             return typing.cast(SkillFn, self.impl)
         if self._instance is None:
@@ -144,7 +183,7 @@ class Skill:
                 f"skill {self.name} returned {out!r}, which is not one of its declared "
                 f"outcomes {list(self.spec.outcomes)}"
             )
-        return typing.cast(str, out)
+        return out
 
     def __repr__(self) -> str:
         return f"<Skill {self.name} [{self.backend}] outcomes={list(self.spec.outcomes)}>"
@@ -164,6 +203,10 @@ def skill(
     Use as ``@skill`` or ``@skill(reads=(...), writes=(...), outcomes=(...), name=...,
     backend=...)`` on a function ``f(bb, rng, *, params...) -> Literal[outcomes]`` or on a
     class whose ``__call__`` has that signature (its ``__init__`` takes no arguments).
+    Long-running skills (see the module docstring) use the same declarations: a class with
+    ``start`` / ``tick`` / ``cancel`` takes its parameters from ``start`` and its outcomes from
+    ``tick``'s ``Literal`` (without ``"running"``); a generator function takes its outcomes
+    from the return type of ``Generator[str, None, Literal[...]]``.
 
     - ``name`` defaults to the function name in CamelCase (``move_to_object`` →
       ``MoveToObject``), or the class name.
@@ -219,12 +262,35 @@ def _make_skill(
     backend: str,
 ) -> Skill:
     is_class = inspect.isclass(obj)
-    if is_class:
+    outcome_source: Any = None  # the function whose return annotation lists the outcomes
+    if is_class and _is_ticking_class(obj):
+        tick = getattr(obj, "tick", None)
+        if not callable(getattr(obj, "start", None)) or not callable(tick):
+            raise SkillDefinitionError(
+                f"class {obj.__name__}: a long-running skill defines both "
+                "`def start(self, bb, rng, *, params...) -> None` and "
+                "`def tick(self, bb, rng) -> Literal['running', 'success', ...]`"
+            )
+        tick_args = [
+            p.name for p in inspect.signature(tick).parameters.values()
+            if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+        ][1:]
+        if len(tick_args) != 2:
+            raise SkillDefinitionError(
+                f"class {obj.__name__}: tick must be `def tick(self, bb, rng)`, found "
+                f"arguments {tick_args}; parameters belong to start()"
+            )
+        func = obj.start
+        outcome_source = tick
+        skip = 1  # self
+        default_name = obj.__name__
+    elif is_class:
         call = getattr(obj, "__call__", None)  # noqa: B004 - we want the class attribute
         if call is None or call is object.__call__:
             raise SkillDefinitionError(
                 f"class {obj.__name__} cannot be a skill: define "
-                "`def __call__(self, bb, rng, *, params...) -> Literal[...]`"
+                "`def __call__(self, bb, rng, *, params...) -> Literal[...]`, or "
+                "start / tick / cancel for a long-running skill"
             )
         func = call
         skip = 1  # self
@@ -269,13 +335,21 @@ def _make_skill(
         params.append(make_param_spec(p.name, base, decl, default, skill_name))
 
     if outcomes is None:
-        ret = hints.get("return", inspect.Parameter.empty)
+        ret_hints = hints if outcome_source is None else _annotations(outcome_source)
+        ret = hints_return = ret_hints.get("return", inspect.Parameter.empty)
+        if inspect.isgeneratorfunction(func) and get_origin(ret) is collections.abc.Generator:
+            ret = get_args(ret)[2]
         if get_origin(ret) is Literal:
             outs = tuple(get_args(ret))
+            if outcome_source is not None:  # tick() -> Literal["running", ...]
+                outs = tuple(o for o in outs if o != RUNNING)
         else:
+            where = "tick's return" if outcome_source is not None else "the return"
             raise SkillDefinitionError(
-                f"skill {skill_name}: declare its outcomes, either "
-                "`-> Literal['success', 'failure']` or @skill(outcomes=('success', 'failure'))"
+                f"skill {skill_name}: declare its outcomes, either in {where} annotation "
+                "(`-> Literal['success', 'failure']`; a generator: "
+                "`-> Generator[str, None, Literal['success', 'failure']]`) or with "
+                f"@skill(outcomes=('success', 'failure')); found {hints_return!r}"
             )
     else:
         if isinstance(outcomes, str):
@@ -290,6 +364,12 @@ def _make_skill(
         if not isinstance(o, str) or not o.isidentifier():
             raise SkillDefinitionError(
                 f"skill {skill_name}: outcome {o!r} must be an identifier string"
+            )
+        if o == RUNNING:
+            raise SkillDefinitionError(
+                f"skill {skill_name}: {RUNNING!r} cannot be an outcome, it means "
+                "'not finished yet'; make the skill long-running (start / tick / cancel, or "
+                "a generator) and return it from tick instead"
             )
     if len(set(outs)) != len(outs):
         raise SkillDefinitionError(f"skill {skill_name}: outcomes {list(outs)} repeat")
@@ -311,6 +391,18 @@ def _make_skill(
         doc=inspect.cleandoc(obj.__doc__ or ""),
     )
     return Skill(spec, obj, backend=backend, is_class=is_class)
+
+
+def _is_ticking_class(cls: type) -> bool:
+    return callable(getattr(cls, "tick", None))
+
+
+def _kind(impl: Any, is_class: bool) -> str:
+    if is_class:
+        return "ticking" if _is_ticking_class(impl) else "instance"
+    if inspect.isgeneratorfunction(impl):
+        return "generator"
+    return "function"
 
 
 def _annotations(func: Any) -> dict[str, Any]:
