@@ -40,6 +40,7 @@ from .simplify import simplify
 
 __all__ = ["EvolutionResult", "GenerationRecord", "evolve"]
 
+_PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 _BREED = 0
 _EVAL = 1
 
@@ -186,7 +187,7 @@ class _Run:
                         continue
                     trials = cfg.cache_refresh
                 by_key[k] = len(jobs)
-            jobs.append(Job(ind, self.seed, spawn, trials))
+            jobs.append(Job.of(ind, self.seed, spawn, trials))
             slots.append([i])
         results = self.evaluator.evaluate(jobs) if jobs else []
         episodes = sum(j.trials for j in jobs)
@@ -413,6 +414,7 @@ def evolve(
                     "seed_fsa" if (i == 0 and seed_genome is not None) else "init"]}
                 run.population.append(g)
         solved = run.best is not None and task.solved(run.best[1])
+        last_plot = time.perf_counter()
         while not solved and run.generation <= cfg.generations:
             t = time.perf_counter()
             fitness, episodes = run.evaluate()
@@ -427,7 +429,9 @@ def evolve(
             run.breed(fitness)
             if rundir is not None and run.generation % cfg.checkpoint_every == 0:
                 rundir.save_checkpoint(run.state())
-                rundir.plots([r.to_dict() for r in run.history], run.best_fsa())
+                if time.perf_counter() - last_plot > _PLOT_EVERY_S:  # drawing is slow
+                    rundir.plots([r.to_dict() for r in run.history], run.best_fsa())
+                    last_plot = time.perf_counter()
     finally:
         evaluator.close()
         if stream is not None:

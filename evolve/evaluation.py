@@ -16,8 +16,7 @@ import os
 from collections.abc import Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -41,20 +40,26 @@ __all__ = [
 BACKENDS = ("serial", "process", "ray")
 
 
-@dataclass(frozen=True)
-class Job:
-    """Evaluate ``genome`` on ``trials`` worlds drawn from ``SeedSequence(seed, spawn_key)``."""
+class Job(NamedTuple):
+    """Evaluate a genome on ``trials`` worlds drawn from ``SeedSequence(seed, spawn_key)``.
 
-    genome: Genome
+    ``genome`` is :meth:`Genome.encode`'s compact form, cheap to send to a worker.
+    """
+
+    genome: tuple[Any, ...]
     seed: int
     spawn_key: tuple[int, ...]
     trials: int
+
+    @classmethod
+    def of(cls, genome: Genome, seed: int, spawn_key: tuple[int, ...], trials: int) -> Job:
+        return cls(genome.encode(), seed, spawn_key, trials)
 
 
 def evaluate_genome(task: Task, compiler: GenomeCompiler, job: Job) -> float:
     """Mean fitness of one job; a failure of any kind scores the task's worst fitness."""
     try:
-        compiled = compiler.compile(job.genome)
+        compiled = compiler.compile(Genome.decode(job.genome))
     except Exception:
         return task.worst
     seq = np.random.SeedSequence(job.seed, spawn_key=job.spawn_key)
@@ -162,11 +167,18 @@ class ProcessEvaluator:
             return []
         chunks = _chunks(jobs, self.workers * self.chunks_per_worker)
         pool = self._get_pool()
-        futures: list[Future[list[float]]] = [pool.submit(_run_chunk, c) for c in chunks]
+        futures: list[Future[list[float]] | None] = []
+        for c in chunks:
+            try:
+                futures.append(pool.submit(_run_chunk, c))
+            except BrokenProcessPool:  # a worker died while we were still submitting
+                futures.append(None)
         out: list[float] = []
         broken = False
         for chunk, fut in zip(chunks, futures, strict=True):
             try:
+                if fut is None:
+                    raise BrokenProcessPool("the pool broke before this chunk was submitted")
                 out.extend(fut.result())
             except BrokenProcessPool:
                 broken = True

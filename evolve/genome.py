@@ -105,6 +105,23 @@ class Genome:
         self.next_id = next_id if next_id is not None else (max(nodes, default=-1) + 1)
         self.origin: dict[str, Any] = dict(origin or {})
 
+    def encode(self) -> tuple[Any, ...]:
+        """A compact, picklable form (plain tuples) for sending to workers."""
+        return (self.start, self.next_id, tuple(
+            (k, n.skill, tuple(n.params), tuple(n.edges)) for k, n in self.nodes.items()
+        ))
+
+    @classmethod
+    def decode(cls, data: tuple[Any, ...], origin: Mapping[str, Any] | None = None) -> Genome:
+        start, next_id, nodes = data
+        return cls(
+            {k: Node(skill, list(params), list(edges)) for k, skill, params, edges in nodes},
+            start, next_id, origin,
+        )
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_decode_genome, (self.encode(), self.origin))
+
     def copy(self) -> Genome:
         return Genome(
             {k: n.copy() for k, n in self.nodes.items()}, self.start, self.next_id,
@@ -302,6 +319,10 @@ class Genome:
 
     def __repr__(self) -> str:
         return f"<Genome {len(self.nodes)} nodes, start {self.start}>"
+
+
+def _decode_genome(data: tuple[Any, ...], origin: Mapping[str, Any]) -> Genome:
+    return Genome.decode(data, origin)
 
 
 def _line(fsa: FSA, *keys: str) -> str:

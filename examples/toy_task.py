@@ -6,10 +6,10 @@ random with probability ``p_fail`` (the paper's noise, section 3.8), so a good F
 Only one order of skills and one carry distance (within ``tolerance``) solve it; the fitness
 (minimised, shaped like the paper's equation 1) rewards getting the block close::
 
-    f = 0                 if the run ends in success with the block put down at the goal
-        10                if the block was never picked up
-        2 * |block - goal| if the run timed out
-        |block - goal|    otherwise
+    f = 0        if the run ends in success with the block put down at the goal
+        10       if the block was never picked up
+        2 * e    if the run timed out
+        e        otherwise, where e = |block - goal| (+ 1 while the block is still held)
 
 A hand-written solution::
 
@@ -107,7 +107,8 @@ def make_task(
             return 0.0
         if not (bb["holding"] or bb["placed"]):
             return 10.0
-        return 2 * d if outcome == "timeout" else d
+        base = d if bb["placed"] else d + 1.0
+        return 2 * base if outcome == "timeout" else base
 
     return Task(
         name="toy_fetch",

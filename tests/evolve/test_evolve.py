@@ -1,0 +1,204 @@
+"""Algorithm 1 end to end on the toy task: solved, reproducible on any number of workers and
+after kill -9 and resume; failures cost one evaluation, not the run."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evolve import (
+    EvolutionConfig,
+    EvolutionResult,
+    Genome,
+    Job,
+    ProcessEvaluator,
+    SerialEvaluator,
+    SkillSet,
+    evolve,
+    initialize,
+)
+from skillcompose import compile_fsa, load_fsa
+from skillcompose.task import load_task
+
+ROOT = Path(__file__).resolve().parents[2]
+SMALL = EvolutionConfig(population=60, initial_nodes=15, generations=60, checkpoint_every=4)
+
+
+def _same_run(a: EvolutionResult, b: EvolutionResult) -> None:
+    strip = [(r.generation, r.best, r.mean, r.median, r.best_size, r.total_evaluations)
+             for r in a.history]
+    assert strip == [(r.generation, r.best, r.mean, r.median, r.best_size, r.total_evaluations)
+                     for r in b.history]
+    assert a.best_fitness == b.best_fitness
+    assert a.best_fsa == b.best_fsa
+    assert a.evolved_fsa == b.evolved_fsa
+
+
+def test_toy_task_is_solved_with_a_fixed_seed() -> None:
+    task = load_task("examples.toy_task", p_fail=0.2, trials=3)
+    result = evolve(task, SMALL.replace(population=100, generations=150), seed=0,
+                    simplify_trials=100)
+    assert result.solved, result.history[-1]
+    assert result.best_fitness == 0.0
+    assert 0 < result.generations < 150
+    assert result.evaluations == sum(r.evaluations for r in result.history)
+    # the exported FSA is an ordinary FSA that the runtime runs, states named Skill_N
+    fsa = result.best_fsa
+    assert all(name.rsplit("_", 1)[1].isdigit() for name in fsa.states)
+    assert fsa.meta["evolved"]["fitness"] == 0.0
+    compiled = compile_fsa(fsa, task.registry)
+    mean = task.evaluate(compiled, seed=123, trials=200)
+    assert mean < 0.5  # solves most fresh worlds (p_fail = 0.2 makes some runs fail)
+    # simplification left no state that can go without making it worse
+    assert len(fsa.states) <= len(result.evolved_fsa.states)
+
+
+def test_same_run_on_one_and_two_workers() -> None:
+    task = load_task("examples.toy_task", p_fail=0.3, trials=2, tolerance=0.01)
+    cfg = SMALL.replace(generations=6, population=40)
+    serial = evolve(task, cfg, seed=7, simplify_trials=50)
+    one = evolve(task, cfg, seed=7, workers=1, backend="process", simplify_trials=50)
+    two = evolve(task, cfg, seed=7, workers=2, backend="process", simplify_trials=50)
+    _same_run(serial, one)
+    _same_run(serial, two)
+    other = evolve(task, cfg, seed=8, simplify_trials=50)
+    assert [r.mean for r in other.history] != [r.mean for r in serial.history]
+
+
+def test_options_change_the_run_and_stay_reproducible() -> None:
+    task = load_task("examples.toy_task", p_fail=0.3, trials=2, tolerance=0.01)
+    base = SMALL.replace(generations=5, population=40)
+    opts = base.replace(elitism=2, common_random_numbers=True, cache=True, parsimony=True)
+    a = evolve(task, opts, seed=3, simplify_result=False)
+    b = evolve(task, opts, seed=3, workers=2, backend="process", simplify_result=False)
+    _same_run(a, b)
+    plain = evolve(task, base, seed=3, simplify_result=False)
+    # the cache skips re-evaluating known genomes: fewer episodes than the plain run
+    assert a.evaluations < plain.evaluations
+    # elitism: the best of a generation never gets worse with a deterministic cache
+    bests = [r.best for r in a.history]
+    assert all(x >= y for x, y in zip(bests, bests[1:]))
+
+
+def _cli(args: list[str], **kw: object) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.Popen(
+        [sys.executable, "-m", "evolve.cli", "evolve", *args], cwd=ROOT, env=env,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw,  # type: ignore[arg-type]
+    )
+
+
+@pytest.mark.slow
+def test_kill_9_and_resume_equals_an_uninterrupted_run(tmp_path: Path) -> None:
+    args = ["examples.toy_task", "--set", "p_fail=0.3", "--set", "tolerance=0.002",
+            "--population", "100", "--initial-nodes", "20", "--generations", "24",
+            "--checkpoint-every", "3", "--seed", "5", "--quiet", "--simplify-trials", "50"]
+    full = _cli([*args, "--out", str(tmp_path / "full")])
+    assert full.wait(timeout=300) == 0, full.stderr.read() if full.stderr else ""
+    killed_dir = tmp_path / "killed"
+    proc = _cli([*args, "--out", str(killed_dir)])
+    deadline = time.time() + 120
+    while time.time() < deadline:  # kill it after its second checkpoint, mid-run
+        hist = killed_dir / "history.jsonl"
+        if hist.exists() and len(hist.read_text().splitlines()) >= 8:
+            break
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    done = [json.loads(line) for line in (killed_dir / "history.jsonl").read_text().splitlines()
+            if line.strip().endswith("}")]
+    full_hist = [json.loads(x) for x in (tmp_path / "full" / "history.jsonl").read_text().split(
+        "\n") if x]
+    assert len(done) < len(full_hist), "the run finished before it could be killed"
+    resumed = _cli(["--resume", str(killed_dir), "--quiet", "--simplify-trials", "50"])
+    assert resumed.wait(timeout=300) == 0, resumed.stderr.read() if resumed.stderr else ""
+    res_hist = [json.loads(x) for x in (killed_dir / "history.jsonl").read_text().split("\n") if x]
+    keys = ("generation", "best", "mean", "median", "best_size", "total_evaluations")
+    assert [[r[k] for k in keys] for r in res_hist] == [[r[k] for k in keys] for r in full_hist]
+    a, b = load_fsa(tmp_path / "full" / "best.yaml"), load_fsa(killed_dir / "best.yaml")
+    assert (a.states, a.start, a.meta) == (b.states, b.start, b.meta)
+
+
+def test_resume_in_process_equals_an_uninterrupted_run(tmp_path: Path) -> None:
+    task = load_task("examples.toy_task", p_fail=0.3, tolerance=0.002)
+    cfg = SMALL.replace(generations=8, population=40, checkpoint_every=3)
+    full = evolve(task, cfg, seed=2, out_dir=tmp_path / "a", simplify_trials=30)
+    stopped: list[int] = []
+
+    def stop_after_7(rec: object) -> None:  # dies in generation 7, after the checkpoint of 6
+        if getattr(rec, "generation", 0) == 7:
+            stopped.append(7)
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        evolve(task, cfg, seed=2, out_dir=tmp_path / "b", on_generation=stop_after_7)
+    assert stopped == [7]
+    resumed = evolve(task, resume=tmp_path / "b", simplify_trials=30)
+    _same_run(full, resumed)
+    assert full.out_dir is not None and (full.out_dir / "best.png").exists()
+    assert (full.out_dir / "fitness.png").stat().st_size > 1000
+    from evolve import CheckpointError
+
+    with pytest.raises(CheckpointError, match="holds a run already"):
+        evolve(task, cfg, seed=2, out_dir=tmp_path / "a")
+    with pytest.raises(CheckpointError, match="no checkpoint"):
+        evolve(task, resume=tmp_path / "nothing")
+
+
+def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
+    task = load_task("tests.evolve.crashy_task", p_fail=0.0)
+    skills = SkillSet.from_task(task)
+    s = skills.index
+    from evolve import Node
+
+    good = Genome({0: Node(s["FindBlock"], [], [-1])}, 0)
+    bad = Genome({0: Node(s["Crash"], [], [-1])}, 0)
+    jobs = [Job.of(g, 0, (1, 0, i), 1) for i, g in enumerate([good, good, bad, good])]
+    ev = ProcessEvaluator(task, skills, workers=2, chunks_per_worker=2)
+    try:
+        out = ev.evaluate(jobs)
+        assert out[2] == task.worst
+        assert ev.lost >= 1
+        assert ev.evaluate(jobs[:2]) == SerialEvaluator(task, skills).evaluate(jobs[:2])
+    finally:
+        ev.close()
+    # in one process the same skill raises: the evaluation scores worst, nothing propagates
+    assert SerialEvaluator(task, skills).evaluate([jobs[2]]) == [task.worst]
+    result = evolve(task, SMALL.replace(generations=2, population=20), seed=0, workers=2,
+                    backend="process", simplify_result=False)
+    assert result.generations == 2
+
+
+def test_seed_fsa_enters_the_first_population() -> None:
+    task = load_task("examples.toy_task", p_fail=0.0, trials=2)
+    path = ROOT / "tests" / "evolve" / "data" / "toy_solution.yaml"
+    result = evolve(task, SMALL, seed=0, seed_fsa=path, simplify_trials=50)
+    assert result.solved and result.generations == 0
+    assert result.best_fsa.meta["evolved"]["lineage"]["ops"] == ["seed_fsa"]
+    assert set(result.best_fsa.states) <= set(load_fsa(path).states)
+
+
+def test_config_errors_are_clear() -> None:
+    from evolve import EvolutionConfigError
+
+    with pytest.raises(EvolutionConfigError, match=r"p_mut = 1.5: expected a probability"):
+        EvolutionConfig(p_mut=1.5)
+    with pytest.raises(EvolutionConfigError, match="elitism = 10 must be smaller"):
+        EvolutionConfig(population=10, elitism=10)
+
+
+def test_initial_population_uses_the_paper_defaults(toy_skills: SkillSet) -> None:
+    cfg = EvolutionConfig()
+    assert (cfg.population, cfg.p_mut, cfg.p_cross, cfg.p_add, cfg.p_del, cfg.initial_nodes) == (
+        300, 0.1, 0.1, 0.2, 0.01, 50)
+    sizes = [len(initialize(toy_skills, np.random.default_rng(i), 50)) for i in range(50)]
+    assert 1 <= min(sizes) and max(sizes) <= 50 and len(set(sizes)) > 5  # pruned, varied

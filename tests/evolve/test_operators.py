@@ -1,0 +1,177 @@
+"""Property tests: from random genomes, every operator keeps the genome's invariants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from evolve import (
+    EvolutionConfig,
+    Genome,
+    GenomeCompiler,
+    SkillSet,
+    add_node,
+    change_start,
+    crossover,
+    delete_node,
+    initialize,
+    mutate,
+    mutate_node,
+)
+from skillcompose import Blackboard, compile_fsa
+from skillcompose.task import Task
+
+seeds = st.integers(min_value=0, max_value=2**32 - 1)
+sizes = st.integers(min_value=1, max_value=30)
+weights = st.sampled_from([0.0, 0.5, 1.0, 3.0])
+
+
+def _random(skills: SkillSet, seed: int, size: int, weight: float) -> tuple[Genome, np.random.Generator]:
+    rng = np.random.default_rng(seed)
+    g = initialize(skills, rng, size, weight)
+    assert g.problems(skills) == []
+    return g, rng
+
+
+def _sound(g: Genome, skills: SkillSet, toy: Task) -> None:
+    assert g.problems(skills) == []
+    fsa = g.to_fsa(skills, step_limit=toy.step_limit)
+    assert fsa.check(toy.registry) == []
+    assert fsa.unreachable() == []
+    back = Genome.from_fsa(fsa, skills).key()
+    assert [(a[0], a[2]) for a in back] == [(b[0], b[2]) for b in g.key()]
+    for a, b in zip(back, g.key()):  # parameters survive units and back, to rounding
+        assert np.allclose(a[1], b[1], atol=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=seeds, size=sizes, weight=weights)
+def test_initialize_prunes_and_is_sound(
+    toy: Task, toy_skills: SkillSet, seed: int, size: int, weight: float
+) -> None:
+    g, _ = _random(toy_skills, seed, size, weight)
+    assert 1 <= len(g) <= size
+    _sound(g, toy_skills, toy)
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=seeds, size=sizes, weight=weights, op=st.sampled_from(["add", "delete", "start"]))
+def test_graph_mutations_keep_invariants(
+    toy: Task, toy_skills: SkillSet, seed: int, size: int, weight: float, op: str
+) -> None:
+    g, rng = _random(toy_skills, seed, size, weight)
+    for _ in range(5):
+        n = len(g)
+        if op == "add":
+            added = add_node(g, toy_skills, rng, weight)
+            if added:
+                assert g.next_id - 1 in g.nodes or len(g) <= n  # new node, unless pruned
+        elif op == "delete":
+            deleted = delete_node(g, toy_skills, rng, weight)
+            assert deleted == (n > 1)
+            if deleted:
+                assert len(g) < n
+        else:
+            old = g.start
+            if change_start(g, rng):
+                assert g.start != old
+                node = g.nodes[g.start]
+                assert any(t != g.start for t in node.edges)
+        _sound(g, toy_skills, toy)
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=seeds, size=sizes, weight=weights, p=st.sampled_from([0.0, 0.1, 0.5, 1.0]))
+def test_node_mutations_keep_invariants(
+    toy: Task, toy_skills: SkillSet, seed: int, size: int, weight: float, p: float
+) -> None:
+    g, rng = _random(toy_skills, seed, size, weight)
+    for k in list(g.nodes):
+        if k in g.nodes:
+            before = g.nodes[k].copy()
+            kind = mutate_node(g, k, toy_skills, rng, p, 0.3, weight)
+            after = g.nodes[k]
+            if kind == "node":  # one edge re-routed elsewhere (when another target exists)
+                changed = [i for i, (a, b) in enumerate(zip(before.edges, after.edges)) if a != b]
+                assert len(changed) <= 1
+                assert after.skill == before.skill
+            assert all(0.0 <= x <= 1.0 for x in after.params)
+    g.prune()
+    _sound(g, toy_skills, toy)
+    cfg = EvolutionConfig(p_mut=p, p_add=0.5, p_del=0.5)
+    for _ in range(3):
+        mutate(g, toy_skills, rng, cfg)
+        _sound(g, toy_skills, toy)
+
+
+@settings(max_examples=80, deadline=None)
+@given(s1=seeds, s2=seeds, n1=sizes, n2=sizes, weight=weights)
+def test_crossover_keeps_invariants(
+    toy: Task, toy_skills: SkillSet, s1: int, s2: int, n1: int, n2: int, weight: float
+) -> None:
+    g1, rng = _random(toy_skills, s1, n1, weight)
+    g2, _ = _random(toy_skills, s2, n2, weight)
+    skills_before = sorted(n.skill for n in g1.nodes.values()) + sorted(
+        n.skill for n in g2.nodes.values())
+    swapped = crossover(g1, g2, toy_skills, rng, weight)
+    assert swapped >= 1
+    _sound(g1, toy_skills, toy)
+    _sound(g2, toy_skills, toy)
+    assert len(skills_before) >= len(g1) + len(g2)  # crossover adds no node; pruning removes
+
+
+def test_crossover_swaps_subgraphs_and_rewires(toy: Task, toy_skills: SkillSet) -> None:
+    """Two chains of distinct skills: a 1-node swap exchanges skills at the chosen places."""
+    s = toy_skills.index
+    from evolve import Node
+
+    g1 = Genome({0: Node(s["FindBlock"], [], [1]), 1: Node(s["PickBlock"], [], [-1, -2])}, 0)
+    g2 = Genome({0: Node(s["Wait"], [0.5], [1]), 1: Node(s["PutDown"], [], [-1, -2])}, 0)
+    rng = np.random.default_rng(3)
+    crossover(g1, g2, toy_skills, rng)
+    all_skills = sorted(n.skill for n in (*g1.nodes.values(), *g2.nodes.values()))
+    assert g1.problems(toy_skills) == [] and g2.problems(toy_skills) == []
+    # a swap exchanges nodes between the genomes: the multiset of skills is kept when
+    # nothing was pruned, and each child holds at least one node of the other parent
+    assert {s["Wait"], s["PutDown"]} & {n.skill for n in g1.nodes.values()}
+    assert len(all_skills) <= 4
+
+
+def test_genome_compiles_to_the_same_runs_as_compile_fsa(toy: Task, toy_skills: SkillSet) -> None:
+    compiler = GenomeCompiler(toy, toy_skills)
+    for seed in range(20):
+        g, _ = _random(toy_skills, seed, 15, 1.0)
+        fast = compiler.compile(g)
+        slow = compile_fsa(g.to_fsa(toy_skills, step_limit=toy.step_limit), toy.registry)
+        for trial in range(5):
+            rng_a, rng_b = np.random.default_rng(trial), np.random.default_rng(trial)
+            bb_a, bb_b = toy.setup(rng_a), toy.setup(rng_b)
+            ra, rb = fast.run(bb_a, rng_a), slow.run(bb_b, rng_b)
+            assert (ra.outcome, ra.steps, ra.last_state) == (rb.outcome, rb.steps, rb.last_state)
+            assert {k: bb_a[k] for k in bb_a} == {k: bb_b[k] for k in bb_b}
+
+
+def test_random_genomes_run(toy: Task, toy_skills: SkillSet) -> None:
+    compiler = GenomeCompiler(toy, toy_skills)
+    g, _ = _random(toy_skills, 1, 50, 1.0)
+    res = compiler.compile(g).run(Blackboard({"p_fail": 0.0, "block_m": 0.0,
+                                              "holding": False, "placed": False}), 0)
+    assert res.outcome in ("success", "failure", "timeout")
+    assert res.error is None
+
+
+def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
+    from evolve import SeedFSAError
+    from skillcompose import loads_fsa
+
+    text = (
+        "format: 1\nstart: A\nstates:\n  A:\n    skill: Fly\n    transitions: {success: B}\n"
+        "  B:\n    skill: PickBlock\n    transitions: {success: success}\n"
+    )
+    with pytest.raises(SeedFSAError) as err:
+        Genome.from_fsa(loads_fsa(text, "bad.yaml"), toy_skills)
+    msg = str(err.value)
+    assert "bad.yaml:4" in msg and "state A" in msg and "'Fly'" in msg
+    assert "failure" in msg and "state B" in msg  # the unrouted outcome of PickBlock
