@@ -84,7 +84,13 @@ class RunDir:
         self, fsa: FSA, registry: Registry, header: str, path: Path | None = None
     ) -> None:
         save_fsa(fsa, path or self.best_yaml, registry, header=header)
-        _atomic_write(self.best_dot, fsa_dot(fsa).encode())
+        try:
+            from skillcompose.draw import to_dot
+
+            dot = to_dot(fsa)
+        except ImportError:  # an older runtime without skillcompose.draw
+            dot = fsa_dot(fsa)
+        _atomic_write(self.best_dot, dot.encode())
 
     def save_checkpoint(self, state: Mapping[str, Any]) -> None:
         data = pickle.dumps({"version": CHECKPOINT_VERSION, **state}, protocol=4)

@@ -28,7 +28,9 @@ sizes = st.integers(min_value=1, max_value=30)
 weights = st.sampled_from([0.0, 0.5, 1.0, 3.0])
 
 
-def _random(skills: SkillSet, seed: int, size: int, weight: float) -> tuple[Genome, np.random.Generator]:
+def _random(
+    skills: SkillSet, seed: int, size: int, weight: float
+) -> tuple[Genome, np.random.Generator]:
     rng = np.random.default_rng(seed)
     g = initialize(skills, rng, size, weight)
     assert g.problems(skills) == []
@@ -42,7 +44,7 @@ def _sound(g: Genome, skills: SkillSet, toy: Task) -> None:
     assert fsa.unreachable() == []
     back = Genome.from_fsa(fsa, skills).key()
     assert [(a[0], a[2]) for a in back] == [(b[0], b[2]) for b in g.key()]
-    for a, b in zip(back, g.key()):  # parameters survive units and back, to rounding
+    for a, b in zip(back, g.key(), strict=True):  # parameters survive units and back, to rounding
         assert np.allclose(a[1], b[1], atol=1e-9)
 
 
@@ -94,8 +96,8 @@ def test_node_mutations_keep_invariants(
             kind = mutate_node(g, k, toy_skills, rng, p, 0.3, weight)
             after = g.nodes[k]
             if kind == "node":  # one edge re-routed elsewhere (when another target exists)
-                changed = [i for i, (a, b) in enumerate(zip(before.edges, after.edges)) if a != b]
-                assert len(changed) <= 1
+                pairs = zip(before.edges, after.edges, strict=True)
+                assert sum(a != b for a, b in pairs) <= 1
                 assert after.skill == before.skill
             assert all(0.0 <= x <= 1.0 for x in after.params)
     g.prune()
