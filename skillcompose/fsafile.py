@@ -44,7 +44,7 @@ from ruamel.yaml.comments import CommentedMap, CommentedSeq
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
-from .errors import FSAFileError, Problem
+from .errors import FSAFileError, FSAValidationError, Problem
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State
 
 if TYPE_CHECKING:
@@ -67,6 +67,9 @@ STATE_KEYS = ("skill", "params", "transitions")
 REQUIRED_STATE_KEYS = ("skill", "transitions")
 
 _STD = "tag:yaml.org,2002:"
+_ALLOWED_TAGS = frozenset(
+    _STD + t for t in ("str", "int", "float", "bool", "null", "map", "seq", "timestamp")
+)
 _HEADER = (
     "FSA file of skillcompose. Edit freely: rename states, change parameters (in the\n"
     "skill's units), re-route outcomes (to a state or a terminal outcome), add comments.\n"
@@ -127,7 +130,7 @@ class _Reader:
         seen.add(id(node))
         tag = node.tag if isinstance(node.tag, str) else getattr(node.tag, "value", "")
         ok = True
-        if not str(tag).startswith(_STD) or str(tag).endswith(":merge"):
+        if str(tag) not in _ALLOWED_TAGS:
             self.fail(node, f"YAML tag {tag!r} is not allowed in FSA files "
                       "(they are plain data: no tags, no code)", fix=f"remove {tag}")
             return False
@@ -305,7 +308,10 @@ class _Reader:
         self.raise_if_problems()
         document = YAML(typ="rt").load(self.text)
         source = Source(self.path, dict(self.positions), document)
-        return FSA(states, start, terminals, step_limit, name, meta, source)
+        try:
+            return FSA(states, start, terminals, step_limit, name, meta, source)
+        except FSAValidationError as exc:
+            raise FSAFileError(exc.problems, self.path) from None
 
     def read_states(self, node: Node) -> dict[str, State]:
         smap = self.mapping(node, "states", None,
@@ -502,11 +508,28 @@ def _new_document(fsa: FSA, registry: Registry | None, header: str | None) -> Co
 def _set(m: CommentedMap, key: str, value: Any) -> None:
     """Assign only when the value changed, so untouched values keep their formatting."""
     value = _py(value)
-    if key in m and _equal(_plain(m[key]), value):
+    if key in m and _equal(_plain(m[key]), value) and _emits_exactly(m[key]):
         return
     if isinstance(value, list) and key == "terminals":
         value = _flow_list(value)
     m[key] = value
+
+
+def _emits_exactly(v: Any) -> bool:
+    """False for a float the YAML library would write back with a different value.
+
+    ruamel.yaml keeps a loaded float's formatting, but re-emits some long exponent forms
+    with a changed last digit; such values are written afresh instead.
+    """
+    if not isinstance(v, float) or type(v) is float:
+        return True
+    buf = io.StringIO()
+    _yaml_out().dump({"v": v}, buf)
+    try:
+        back = YAML(typ="safe").load(buf.getvalue())["v"]
+    except Exception:
+        return False
+    return bool(back == float(v)) or (math.isnan(back) and math.isnan(float(v)))
 
 
 def _equal(a: Any, b: Any) -> bool:

@@ -1,0 +1,7 @@
+"""``python -m skillcompose``: the same as the ``skillcompose`` command."""
+
+from __future__ import annotations
+
+from .cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,251 @@
+"""The ``skillcompose`` command line (also ``python -m skillcompose``).
+
+Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. Other packages add
+theirs (``evolve``, ``robustness``, ``robot``) through a ``register_cli(subparsers)``
+function in the modules listed in :data:`SUBCOMMAND_MODULES`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import traceback
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .blackboard import DELETED, Blackboard
+from .errors import SkillcomposeError
+from .executor import compile_fsa, summarize, trial_rngs
+from .fsafile import load_fsa
+from .registry import Registry
+from .task import Task, load_task, parse_settings
+
+__all__ = ["SUBCOMMAND_MODULES", "build_parser", "main"]
+
+SUBCOMMAND_MODULES = (
+    "evolve.cli",
+    "skillcompose.robustness",
+    "robots.cli",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="skillcompose",
+        description="Compose robot skills into finite state automata, run and evolve them.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    def skills_args(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--skills", action="append", default=[], metavar="MODULE",
+            help="a module (dotted name or .py file) or FSA file whose skills to load; "
+            "repeatable",
+        )
+        p.add_argument(
+            "--task", metavar="TASK",
+            help="a task module (make_task): its skills and, for run, its world per trial",
+        )
+        p.add_argument(
+            "--set", action="append", default=[], metavar="NAME=VALUE", dest="settings",
+            help="a task setting, e.g. --set p_fail=0.3; repeatable",
+        )
+        p.add_argument("--backend", help="which implementation of each skill to run")
+
+    p = sub.add_parser("run", help="run an FSA file and report its outcomes")
+    p.add_argument("file", help="the FSA file (YAML)")
+    skills_args(p)
+    p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    p.add_argument("--trials", type=int, default=1, help="number of runs (default 1)")
+    p.add_argument("--trace", action="store_true",
+                   help="print each step of the first run, and a traceback on error")
+    p.add_argument("--propagate", action="store_true",
+                   help="let a skill's exception stop the command with its traceback")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("validate", help="check an FSA file (against skills when given)")
+    p.add_argument("file")
+    skills_args(p)
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("show", help="draw an FSA file (DOT, Mermaid, SVG, PNG)")
+    p.add_argument("file")
+    p.add_argument("-o", "--output", help="output file: .dot .mmd .svg .png .pdf "
+                   "(default: DOT on standard output)")
+    p.add_argument("--mermaid", action="store_true", help="print Mermaid instead of DOT")
+    p.add_argument("--no-params", action="store_true", help="leave parameters out")
+    p.set_defaults(func=cmd_show)
+
+    p = sub.add_parser("skills", help="list skills: parameters, ranges, outcomes, keys")
+    skills_args(p)
+    p.set_defaults(func=cmd_skills)
+
+    for name in SUBCOMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name is not None and name.startswith(exc.name):
+                continue  # that part of skillcompose is not installed
+            raise
+        register = getattr(module, "register_cli", None)
+        if callable(register):
+            register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args))
+    except SkillcomposeError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+# ---------------------------------------------------------------------------------------
+def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
+    task: Task | None = None
+    if getattr(args, "task", None):
+        task = load_task(args.task, **parse_settings(args.settings))
+        registry = task.registry
+    else:
+        if args.settings:
+            raise SkillcomposeError("--set needs --task: settings belong to a task")
+        registry = Registry()
+    if args.backend:
+        registry.backend = args.backend
+    elif task is not None and task.backend:
+        registry.backend = task.backend
+    for target in args.skills:
+        registry.load_module(target)
+    registry.load_entry_points()
+    return registry, task
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    fsa = load_fsa(args.file)
+    registry, task = _load(args)
+    if not len(registry):
+        raise SkillcomposeError(
+            f"{args.file}: no skills loaded; give --skills MODULE or --task TASK"
+        )
+    if args.trials < 1:
+        raise SkillcomposeError(f"--trials must be at least 1, got {args.trials}")
+    try:
+        compiled = compile_fsa(fsa, registry, args.backend)
+    except SkillcomposeError as exc:
+        raise SkillcomposeError(str(exc)) from None
+    results = []
+    fitness: list[float] = []
+    for k, rng in enumerate(trial_rngs(args.seed, args.trials)):
+        bb = task.setup(rng) if task is not None else Blackboard()
+        result = compiled.run(bb, rng, trace=args.trace and k == 0, propagate=args.propagate)
+        results.append(result)
+        if task is not None:
+            fitness.append(task.score(result, bb))
+        if result.trace is not None:
+            _print_trace(result)
+        if result.error is not None and args.trace and k == 0:
+            print(f"state {result.last_state} raised:", file=sys.stderr)
+            traceback.print_exception(result.error, file=sys.stderr)
+    s = summarize(results)
+    print(f"{args.file}: {s['trials']} run(s), seed {args.seed}, backend {compiled.backend}")
+    width = max(len(o) for o in s["outcomes"])
+    for outcome, count in s["outcomes"].items():
+        print(f"  {outcome:<{width}}  {count:>7}  {100.0 * count / s['trials']:6.2f}%")
+    print(f"  mean steps {s['mean_steps']:.2f}")
+    if task is not None:
+        arr = np.asarray(fitness)
+        print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
+              f"({'lower' if task.minimize else 'higher'} is better)")
+    errors = [r for r in results if r.error is not None]
+    if errors and not args.trace:
+        first = errors[0]
+        print(
+            f"  {len(errors)} run(s) ended in error; first in state {first.last_state}: "
+            f"{type(first.error).__name__}: {first.error}. Rerun with --trace (and "
+            "--trials 1 --seed of that run) for the traceback",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def _short(v: Any) -> str:
+    if v is DELETED:
+        return "∅"
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _print_trace(result: Any) -> None:
+    for ev in result.trace:
+        print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}")
+        for key, (old, new) in ev.changes.items():
+            print(f"        {key}: {_short(old)} => {_short(new)}")
+    print(f"ended: {result.outcome} after {result.steps} step(s)")
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    fsa = load_fsa(args.file)
+    if args.skills or args.task:
+        registry, _ = _load(args)
+        fsa.validate(registry)
+        checked = f"against {len(registry)} skills"
+    else:
+        checked = "structure only (give --skills or --task to check skills and parameters)"
+    unreachable = fsa.unreachable()
+    print(f"{args.file}: valid, {len(fsa.states)} states, start {fsa.start}; {checked}")
+    if unreachable:
+        print(f"  warning: unreachable from {fsa.start}: {', '.join(unreachable)} "
+              "(they never run; delete them or route an outcome to them)")
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from .draw import render, to_dot, to_mermaid
+
+    fsa = load_fsa(args.file)
+    if args.output:
+        out = render(fsa, args.output, params=not args.no_params)
+        print(f"wrote {out}")
+    elif args.mermaid:
+        sys.stdout.write(to_mermaid(fsa))
+    else:
+        sys.stdout.write(to_dot(fsa, params=not args.no_params))
+    return 0
+
+
+def cmd_skills(args: argparse.Namespace) -> int:
+    registry, _ = _load(args)
+    if not len(registry):
+        raise SkillcomposeError("no skills loaded; give --skills MODULE or --task TASK")
+    for name in sorted(registry.names()):
+        spec = registry.spec(name)
+        backends = ", ".join(registry.backends(name))
+        print(f"{name}  [{backends}]")
+        print(f"  outcomes: {', '.join(spec.outcomes)}")
+        for p in spec.params:
+            print(f"  param {p.name}: {p.describe_range()} (default {p.default!r}"
+                  f"{', log scale' if p.scale == 'log' else ''})")
+        if spec.reads:
+            print(f"  reads:  {', '.join(sorted(spec.reads))}")
+        if spec.writes:
+            print(f"  writes: {', '.join(sorted(spec.writes))}")
+        if spec.doc:
+            print("  " + spec.doc.splitlines()[0])
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

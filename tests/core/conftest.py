@@ -1,0 +1,11 @@
+from __future__ import annotations
+
+import pytest
+
+from skillcompose import Registry
+from tests.core import demo_skills
+
+
+@pytest.fixture
+def registry() -> Registry:
+    return Registry.from_modules([demo_skills])

@@ -1,0 +1,225 @@
+from __future__ import annotations
+
+import json
+import math
+import re
+import textwrap
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from skillcompose import (
+    FSA,
+    FSAFileError,
+    FSAValidationError,
+    Registry,
+    State,
+    compile_fsa,
+    dumps_fsa,
+    load_fsa,
+    loads_fsa,
+    save_fsa,
+)
+from skillcompose.fsafile import STATE_KEYS, TOP_LEVEL_KEYS
+
+HAND_WRITTEN = textwrap.dedent(
+    """\
+    # Pour water, by hand.
+    format: 1
+    name: pour   # the skill name when nested
+    start: Recognise_1
+    step_limit: 20
+    states:
+      # look first
+      Recognise_1:
+        skill: Recognise
+        transitions: {success: Move_2}
+      Move_2:
+        skill: MoveToObject
+        params:
+          approach: 0.2   # m, closer is riskier
+          p_fail: 0.1
+        transitions:
+          success: Grasp_3
+          failure: Move_2   # retry
+      Grasp_3:
+        skill: GraspObject
+        params: {force: 3, arm: right}
+        transitions:
+          success: success
+          failure: Move_2
+    """
+)
+
+
+def test_hand_edit_survives_load_modify_save(tmp_path: Path, registry: Registry) -> None:
+    path = tmp_path / "pour.fsa.yaml"
+    path.write_text(HAND_WRITTEN)
+    fsa = load_fsa(path)
+    edited = (
+        fsa.with_params("Move_2", approach=0.15)
+        .rename_state("Grasp_3", "Grab")
+        .route("Grab", "failure", "Recognise_1")
+    )
+    save_fsa(edited, path, registry)
+    text = path.read_text()
+    for comment in ("# Pour water, by hand.", "# the skill name when nested", "# look first",
+                    "# m, closer is riskier", "# retry"):
+        assert comment in text
+    assert re.search(r"approach: 0\.15 +# m, closer is riskier", text)
+    assert "transitions: {success: Move_2}" in text  # flow style kept
+    assert "Grab:" in text and "Grasp_3" not in text
+    assert "success: Grab" in text
+    # key order kept: the renamed state stays where it was
+    assert text.index("Recognise_1:") < text.index("Move_2:") < text.index("Grab:")
+    again = load_fsa(path)
+    assert again == edited
+    assert compile_fsa(again, registry).run(None, 0).outcome == "success"
+
+
+def test_saving_an_unchanged_file_keeps_it_byte_for_byte(tmp_path: Path) -> None:
+    path = tmp_path / "pour.fsa.yaml"
+    path.write_text(HAND_WRITTEN)
+    save_fsa(load_fsa(path), path)
+    assert path.read_text() == HAND_WRITTEN
+
+
+_names = st.from_regex(r"[A-Z][a-z]{0,6}_[0-9]{1,3}", fullmatch=True)
+_values = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False, width=64),
+    st.integers(-10**6, 10**6),
+    st.booleans(),
+    st.sampled_from(["left", "right", "yes", "no", "on", "null", "1.5", "a b"]),
+)
+
+
+@st.composite
+def fsas(draw: st.DrawFn) -> FSA:
+    names = draw(st.lists(_names, min_size=1, max_size=8, unique=True))
+    terminals = ("success", "failure")
+    targets = st.sampled_from(names + list(terminals))
+    states = {}
+    for n in names:
+        outcomes = draw(st.lists(st.from_regex(r"[a-z]{1,8}", fullmatch=True),
+                                 min_size=1, max_size=3, unique=True))
+        params = draw(st.dictionaries(st.from_regex(r"[a-z]{1,6}", fullmatch=True), _values,
+                                      max_size=3))
+        states[n] = State(draw(_names), params, {o: draw(targets) for o in outcomes})
+    meta = draw(st.dictionaries(st.sampled_from(["fitness", "generation", "note"]), _values,
+                                max_size=3))
+    return FSA(states, draw(st.sampled_from(names)), terminals,
+               draw(st.integers(1, 500)), draw(st.sampled_from(["", "task_a"])), meta)
+
+
+@settings(max_examples=150, deadline=None)
+@given(fsas())
+def test_random_fsas_survive_save_and_load(fsa: FSA) -> None:
+    text = dumps_fsa(fsa)
+    back = loads_fsa(text)
+    assert back == fsa
+    for sname, state in fsa.states.items():  # types survive too (1 stays int, 1.0 float)
+        for k, v in state.params.items():
+            got = back.states[sname].params[k]
+            assert type(got) is type(v)
+            assert got == v or (isinstance(v, float) and math.isnan(v))
+    assert loads_fsa(dumps_fsa(back)) == fsa  # saving a loaded file loses nothing either
+
+
+def _error(text: str) -> str:
+    with pytest.raises(FSAFileError) as info:
+        loads_fsa(textwrap.dedent(text), "bad.yaml")
+    return str(info.value)
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("format: 1\nstart: A\nstates: {A: {skill: X, transitions: {ok: A}}\n",
+         "bad.yaml:4:1: not valid YAML"),  # unclosed flow mapping
+        ("", "the file is empty"),
+        ("- a\n- b\n", "the top level must be a mapping"),
+        ("format: 1\nstart: A\nstates:\n  A: !!python/object:os.system {skill: X}\n",
+         "bad.yaml:4:6: YAML tag 'tag:yaml.org,2002:python/object:os.system' is not allowed"),
+        ("format: 1\nstart: A\nstates:\n  A: &x {skill: X, transitions: {ok: success}}\n"
+         "  B: *x\n", "not allowed in FSA files"),
+        ("format: 1\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
+         "missing top-level key 'start'; add `start: <name of the first state>`"),
+        ("format: 2\nstart: A\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
+         "bad.yaml:1:9: format 2 is not supported"),
+        ("format: 1\nstart: A\nstep_limt: 3\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
+         "bad.yaml:3:1: the top level: unknown key 'step_limt'; did you mean 'step_limit'?"),
+        ("format: 1\nstart: A\nstep_limit: -3\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
+         "bad.yaml:3:13: step_limit must be a positive whole number, got -3"),
+        ("format: 1\nstart: A\nstates:\n  A: {skill: X, transitions: {ok: success}}\n"
+         "  A: {skill: Y, transitions: {ok: success}}\n",
+         "bad.yaml:5:3: states: key 'A' appears twice (first on line 4)"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n",
+         "bad.yaml:5:5: state A: missing key 'transitions'"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skil: X\n    transitions: {ok: success}\n",
+         "bad.yaml:5:5: state A: state A: unknown key 'skil'; did you mean 'skill'?"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: [X]\n    transitions: {ok: success}\n",
+         "bad.yaml:5:12: state A: skill must be a name (text), got a list"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    params: {v: [1, 2]}\n"
+         "    transitions: {ok: success}\n",
+         "bad.yaml:6:17: state A: parameter 'v' must be a single value"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    transitions: {ok: 3}\n",
+         "bad.yaml:6:23: state A: the target of outcome 'ok' must be a name (text), got int 3"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    transitions: {ok: Bee}\n"
+         "  B:\n    skill: X\n    transitions: {ok: success}\n",
+         "bad.yaml:6:23: state A: outcome 'ok' goes to 'Bee', which is neither a state nor "
+         "a terminal outcome"),
+        ("format: 1\nstart: Q\nstates:\n  A:\n    skill: X\n    transitions: {ok: success}\n",
+         "bad.yaml:2:8: start state 'Q' does not exist"),
+        ("format: 1\nstart: A\nterminals: done\nstates:\n  A:\n    skill: X\n"
+         "    transitions: {ok: done}\n", "terminals must be a list"),
+    ],
+)
+def test_each_malformed_file_has_its_own_clear_error(text: str, expected: str) -> None:
+    message = _error(text)
+    assert expected in message
+    assert "Traceback" not in message
+
+
+def test_skill_errors_point_at_file_lines(tmp_path: Path, registry: Registry) -> None:
+    path = tmp_path / "pour.fsa.yaml"
+    path.write_text(HAND_WRITTEN.replace("approach: 0.2", "approach: 2.0")
+                    .replace("failure: Move_2   # retry", "faliure: Move_2"))
+    fsa = load_fsa(path)
+    with pytest.raises(FSAValidationError) as info:
+        compile_fsa(fsa, registry)
+    text = str(info.value)
+    assert f"{path}:14:17: state Move_2: skill MoveToObject: parameter 'approach'" in text
+    assert f"{path}:18:16: state Move_2: 'faliure' is not an outcome" in text
+    assert "outcome 'failure' of skill MoveToObject has no transition" in text
+
+
+def test_missing_file() -> None:
+    with pytest.raises(FSAFileError, match="no_such.yaml: file not found"):
+        load_fsa("no_such.yaml")
+
+
+def test_schema_keys_equal_the_parser_keys() -> None:
+    import skillcompose
+
+    schema_path = Path(skillcompose.__file__).parent / "schema" / "fsa.schema.json"
+    schema = json.loads(schema_path.read_text())
+    assert tuple(schema["properties"]) == TOP_LEVEL_KEYS
+    assert tuple(schema["$defs"]["state"]["properties"]) == STATE_KEYS
+
+
+def test_schema_accepts_what_we_write(registry: Registry) -> None:
+    jsonschema = pytest.importorskip("jsonschema")
+    import skillcompose
+
+    schema = json.loads(
+        (Path(skillcompose.__file__).parent / "schema" / "fsa.schema.json").read_text()
+    )
+    from ruamel.yaml import YAML
+
+    doc = YAML(typ="safe").load(HAND_WRITTEN)
+    jsonschema.validate(doc, schema)
+    doc["states"]["Move_2"]["colour"] = "red"
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(doc, schema)

@@ -1,0 +1,96 @@
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pytest
+
+from skillcompose import (
+    FSA,
+    Blackboard,
+    Registry,
+    RegistryError,
+    State,
+    UnknownSkillError,
+    compile_fsa,
+    skill,
+)
+from tests.core import demo_skills
+
+
+def _backend_pair() -> tuple[object, object]:
+    @skill(name="Detect", backend="sim", writes=("seen",))
+    def detect_sim(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+        bb["seen"] = "sim"
+        return "success"
+
+    @skill(name="Detect", backend="kinematic", writes=("seen",))
+    def detect_kin(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+        bb["seen"] = "kinematic"
+        return "success"
+
+    return detect_sim, detect_kin
+
+
+def test_backend_swap_on_one_fsa() -> None:
+    sim, kin = _backend_pair()
+    reg = Registry([sim, kin])  # type: ignore[list-item]
+    fsa = FSA({"D": State("Detect", {}, {"success": "success", "failure": "failure"})}, "D")
+    for backend in ("sim", "kinematic"):
+        bb = Blackboard()
+        result = compile_fsa(fsa, reg, backend).run(bb, 0)
+        assert result.outcome == "success"
+        assert bb["seen"] == backend
+    with pytest.raises(UnknownSkillError, match=r"no 'real' implementation.*--backend"):
+        compile_fsa(fsa, reg, "real")
+
+
+def test_backends_must_share_a_signature() -> None:
+    sim, _ = _backend_pair()
+
+    @skill(name="Detect", backend="real")
+    def detect_real(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+        return "success"
+
+    reg = Registry([sim])  # type: ignore[list-item]
+    with pytest.raises(RegistryError, match="same signature"):
+        reg.add(detect_real)
+
+
+def test_unknown_skill_suggests() -> None:
+    reg = Registry.from_modules([demo_skills])
+    with pytest.raises(UnknownSkillError, match="did you mean MoveToObject"):
+        reg.spec("MoveToObjet")
+
+
+def test_load_by_dotted_name_and_by_path(tmp_path: Path) -> None:
+    reg = Registry()
+    added = reg.load_module("tests.core.demo_skills")
+    assert "GraspObject" in reg and len(added) == len(reg)
+    f = tmp_path / "my_skills.py"
+    f.write_text(
+        "from typing import Literal\nfrom skillcompose import skill\n"
+        "def register(registry):\n"
+        "    @skill\n"
+        "    def wave(bb, rng) -> Literal['success']:\n"
+        "        return 'success'\n"
+        "    registry.add(wave)\n"
+    )
+    reg.load_module(str(f))
+    assert "Wave" in reg
+
+
+def test_module_without_skills(tmp_path: Path) -> None:
+    f = tmp_path / "empty.py"
+    f.write_text("x = 1\n")
+    with pytest.raises(RegistryError, match="defines no skills"):
+        Registry().load_module(str(f))
+    with pytest.raises(RegistryError, match="cannot import skills module"):
+        Registry().load_module("no_such_module_here")
+
+
+def test_two_registries_are_independent() -> None:
+    a = Registry.from_modules([demo_skills])
+    b = Registry()
+    assert len(a) > 0 and len(b) == 0

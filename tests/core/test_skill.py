@@ -1,0 +1,108 @@
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+import numpy as np
+import pytest
+
+from skillcompose import (
+    Blackboard,
+    BlackboardAccessError,
+    Param,
+    ParamError,
+    SkillDefinitionError,
+    UndeclaredOutcomeError,
+    skill,
+)
+from skillcompose.skill import camel_name
+from tests.core import demo_skills
+
+
+def test_decorator_reads_declaration() -> None:
+    spec = demo_skills.move_to_object.spec
+    assert spec.name == "MoveToObject"
+    assert spec.outcomes == ("success", "failure")
+    assert spec.reads == frozenset({"jug"})
+    assert spec.writes == frozenset({"gripper"})
+    approach = spec.param("approach")
+    assert (approach.kind, approach.low, approach.high, approach.unit) == ("float", 0.05, 0.3, "m")
+    assert approach.default == 0.1
+
+
+def test_class_skill_kinds() -> None:
+    spec = demo_skills.GraspObject.spec
+    kinds = {p.name: p.kind for p in spec.params}
+    assert kinds == {"force": "int", "arm": "choice", "careful": "bool"}
+    assert spec.param("arm").choices == ("left", "right")
+
+
+def test_param_as_annotation_is_accepted() -> None:
+    @skill
+    def wave(bb, rng, *, amp: Param(0.0, 2.0, unit="rad") = 1.0) -> Literal["success"]:  # type: ignore[valid-type]
+        return "success"
+
+    assert wave.spec.param("amp").unit == "rad"
+    assert wave.spec.param("amp").kind == "float"
+
+
+def test_camel_names() -> None:
+    assert camel_name("move_to_object") == "MoveToObject"
+    assert camel_name("MoveBase") == "MoveBase"
+    assert camel_name("push") == "Push"
+
+
+@pytest.mark.parametrize(
+    "source, message",
+    [
+        ("def f(bb, rng, *, x=0.5) -> Literal['success']: ...", "has no range"),
+        ("def f(bb, rng, *, x: Annotated[float, Param(0, 1)]) -> Literal['success']: ...",
+         "needs a default"),
+        ("def f(bb, rng, *, x: Annotated[float, Param(0, 1)] = 2.0) -> Literal['success']: ...",
+         "expected float in [0, 1]"),
+        ("def f(bb, rng): ...", "declare its outcomes"),
+        ("def f(bb, rng, x) -> Literal['success']: ...", "keyword-only"),
+        ("def f(bb, rng, **kw) -> Literal['success']: ...", "*args/**kwargs"),
+        ("def f(bb, rng, *, x: Annotated[float, Param(2, 1)] = 1.5) -> Literal['ok']: ...",
+         "low 2 is above high 1"),
+        ("def f(bb, rng, *, x: Annotated[float, Param(0, 1, scale='log')] = 0.5)"
+         " -> Literal['ok']: ...", "positive low bound"),
+    ],
+)
+def test_bad_declarations_are_named(source: str, message: str) -> None:
+    ns: dict[str, object] = {"Literal": Literal, "Annotated": Annotated, "Param": Param}
+    exec(source, ns)
+    with pytest.raises((SkillDefinitionError, ParamError)) as info:
+        skill(ns["f"])
+    assert message in str(info.value)
+    assert "skill F" in str(info.value)  # the skill is named
+
+
+def test_reads_given_as_a_string_is_an_error() -> None:
+    with pytest.raises(SkillDefinitionError, match=r"reads=\('jug',\)"):
+        skill(reads="jug", name="Bad", outcomes=("success",))(lambda bb, rng: "success")  # type: ignore[arg-type]
+
+
+def test_direct_call_checks_outcome_and_access() -> None:
+    bb = Blackboard({"jug": (1.0, 0.0, 0.0)})
+    assert demo_skills.move_to_object(bb, 0, p_fail=0.0) == "success"
+    assert bb["gripper"] == pytest.approx((0.9, 0.0, 0.0))
+    with pytest.raises(UndeclaredOutcomeError, match="Liar returned 'sucess'"):
+        demo_skills.liar(Blackboard(), 0)
+    with pytest.raises(BlackboardAccessError, match="Sneaky wrote .*'gripper'"):
+        demo_skills.sneaky(Blackboard({"jug": 1}), 0)
+    with pytest.raises(ParamError, match="approach"):
+        demo_skills.move_to_object(bb, 0, approach=5.0)
+
+
+def test_unit_interval_mapping_round_trips() -> None:
+    rng = np.random.default_rng(0)
+    for p in demo_skills.move_to_object.spec.params + demo_skills.GraspObject.spec.params:
+        for x in rng.random(50):
+            v = p.from_unit(float(x))
+            p.check(v)
+            assert p.from_unit(p.to_unit(v)) == v
+    log = Param(0.01, 10.0, scale="log")
+    from skillcompose.params import make_param_spec
+
+    spec = make_param_spec("k", float, log, 1.0, "S")
+    assert spec.from_unit(0.5) == pytest.approx(np.sqrt(0.01 * 10.0))
