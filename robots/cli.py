@@ -33,7 +33,13 @@ def add_robot_cli(subparsers: Any) -> argparse.ArgumentParser:
     show = sub.add_parser("show", help="render a configuration to a PNG")
     show.add_argument("--config", default="tucked", help="neutral, tucked or a JSON file")
     show.add_argument("--out", type=Path, default=Path("robot.png"), help="PNG to write")
+    show.set_defaults(func=run_robot_cli)
     return robot
+
+
+def register_cli(subparsers: Any) -> None:
+    """The hook ``skillcompose.cli`` calls to add ``skillcompose robot``."""
+    add_robot_cli(subparsers)
 
 
 def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:

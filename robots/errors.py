@@ -1,16 +1,17 @@
 """Exceptions raised by :mod:`robots`.
 
-One family: every error derives from :class:`RobotModelError`. The runtime will
-re-root it under ``skillcompose.errors.SkillcomposeError``; the class names are
-stable.
+One family: every error derives from :class:`RobotModelError`, itself a
+``skillcompose.errors.SkillcomposeError``, so the CLI reports them like any other.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
+from skillcompose.errors import SkillcomposeError
 
-class RobotModelError(Exception):
+
+class RobotModelError(SkillcomposeError):
     """Base class of every error raised by :mod:`robots`."""
 
 

@@ -356,7 +356,7 @@ class _Reader:
             else:
                 pmap = self.mapping(pnode, f"state {sname} params", None, state=sname,
                                     fix="write `params: {name: value}`")
-                for pname, (pk, pv) in (pmap or {}).items():
+                for pname, (_, pv) in (pmap or {}).items():
                     self.mark(("states", sname, "params", pname), pv)
                     if not isinstance(pv, ScalarNode):
                         self.fail(pv, f"parameter {pname!r} must be a single value "
@@ -372,7 +372,7 @@ class _Reader:
                                 state=sname, fix="write `transitions: {outcome: target}`")
             if tmap is None:
                 ok = False
-            for outcome, (ok_node, tv) in (tmap or {}).items():
+            for outcome, (_, tv) in (tmap or {}).items():
                 self.mark(("states", sname, "transitions", outcome), tv)
                 target = self.string(tv, f"the target of outcome {outcome!r}", state=sname,
                                      key=outcome, fix="write a state name or a terminal "

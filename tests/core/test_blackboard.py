@@ -26,9 +26,9 @@ def test_declared_access_is_enforced_and_named() -> None:
     assert bb["jug"] == 1
     bb["water"] = True
     assert bb["water"] is True  # writing implies reading
-    with pytest.raises(BlackboardAccessError, match="skill Pour read .*'glass'.*reads="):
+    with pytest.raises(BlackboardAccessError, match=r"skill Pour read .*'glass'.*reads="):
         bb["glass"]
-    with pytest.raises(BlackboardAccessError, match="skill Pour wrote .*'jug'"):
+    with pytest.raises(BlackboardAccessError, match=r"skill Pour wrote .*'jug'"):
         bb["jug"] = 3
     with pytest.raises(BlackboardAccessError):
         _ = "glass" in bb

@@ -128,7 +128,7 @@ def test_validation_lists_every_problem(registry: Registry) -> None:
 def test_structure_checked_at_construction() -> None:
     with pytest.raises(FSAValidationError, match="start state 'Z' does not exist"):
         FSA({"A": State("Noop", {}, {"success": "success"})}, "Z")
-    with pytest.raises(FSAValidationError, match="goes to 'Bb'.*did you mean 'B'"):
+    with pytest.raises(FSAValidationError, match=r"goes to 'Bb'.*did you mean 'B'"):
         FSA({"A": State("Noop", {}, {"success": "Bb"}),
              "B": State("Noop", {}, {"success": "success"})}, "A")
     with pytest.raises(FSAValidationError, match="cannot be named 'success'"):

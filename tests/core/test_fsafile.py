@@ -150,7 +150,8 @@ def _error(text: str) -> str:
          "bad.yaml:1:9: format 2 is not supported"),
         ("format: 1\nstart: A\nstep_limt: 3\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
          "bad.yaml:3:1: the top level: unknown key 'step_limt'; did you mean 'step_limit'?"),
-        ("format: 1\nstart: A\nstep_limit: -3\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
+        ("format: 1\nstart: A\nstep_limit: -3\n"
+         "states: {A: {skill: X, transitions: {ok: success}}}\n",
          "bad.yaml:3:13: step_limit must be a positive whole number, got -3"),
         ("format: 1\nstart: A\nstates:\n  A: {skill: X, transitions: {ok: success}}\n"
          "  A: {skill: Y, transitions: {ok: success}}\n",
@@ -196,7 +197,7 @@ def test_skill_errors_point_at_file_lines(tmp_path: Path, registry: Registry) ->
 
 
 def test_missing_file() -> None:
-    with pytest.raises(FSAFileError, match="no_such.yaml: file not found"):
+    with pytest.raises(FSAFileError, match=r"no_such\.yaml: file not found"):
         load_fsa("no_such.yaml")
 
 

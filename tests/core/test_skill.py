@@ -88,7 +88,7 @@ def test_direct_call_checks_outcome_and_access() -> None:
     assert bb["gripper"] == pytest.approx((0.9, 0.0, 0.0))
     with pytest.raises(UndeclaredOutcomeError, match="Liar returned 'sucess'"):
         demo_skills.liar(Blackboard(), 0)
-    with pytest.raises(BlackboardAccessError, match="Sneaky wrote .*'gripper'"):
+    with pytest.raises(BlackboardAccessError, match=r"Sneaky wrote .*'gripper'"):
         demo_skills.sneaky(Blackboard({"jug": 1}), 0)
     with pytest.raises(ParamError, match="approach"):
         demo_skills.move_to_object(bb, 0, approach=5.0)
