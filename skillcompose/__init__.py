@@ -20,6 +20,7 @@ from .errors import (
     RegistryError,
     SkillcomposeError,
     SkillDefinitionError,
+    SkillProtocolError,
     UndeclaredOutcomeError,
     UnknownSkillError,
 )
@@ -47,6 +48,8 @@ from .nested import FSASkill, fsa_skill
 from .params import Choice, Param, ParamSpec
 from .registry import Registry
 from .skill import Skill, SkillSpec, skill
+from .task import Task, TaskError, TaskRef, load_task
+from .ticking import RUNNING, Activation, FSARun, run_ticking
 
 __version__ = "0.1.0"
 
@@ -57,8 +60,10 @@ __all__ = [
     "ERROR",
     "FSA",
     "PREEMPTED",
+    "RUNNING",
     "TIMEOUT",
     "Access",
+    "Activation",
     "Blackboard",
     "BlackboardAccessError",
     "BlackboardKeyError",
@@ -66,6 +71,7 @@ __all__ = [
     "Choice",
     "CompiledFSA",
     "FSAFileError",
+    "FSARun",
     "FSASkill",
     "FSAValidationError",
     "Param",
@@ -77,9 +83,13 @@ __all__ = [
     "RunResult",
     "Skill",
     "SkillDefinitionError",
+    "SkillProtocolError",
     "SkillSpec",
     "SkillcomposeError",
     "State",
+    "Task",
+    "TaskError",
+    "TaskRef",
     "TraceStep",
     "UndeclaredOutcomeError",
     "UnknownSkillError",
@@ -89,8 +99,10 @@ __all__ = [
     "dumps_fsa",
     "fsa_skill",
     "load_fsa",
+    "load_task",
     "loads_fsa",
     "run_fsa",
+    "run_ticking",
     "save_fsa",
     "skill",
     "summarize",

@@ -196,8 +196,8 @@ class CompiledFSA:
             while steps < limit:
                 fn, access, nxt = table[i]
                 bb._client = access
+                steps += 1  # counted before the call: a step that raises counts too
                 out = fn(bb, rng)
-                steps += 1
                 j = nxt.get(out)
                 if j is None:
                     raise self._undeclared(i, out)

@@ -52,7 +52,7 @@ class Registry:
             )
         label = backend or s.backend
         if backend is not None and backend != s.backend:
-            s = Skill(s.spec, s.impl, backend=backend, is_class=s.is_class)
+            s = s.with_backend(backend)
         impls = self._impls.setdefault(s.name, {})
         for other in impls.values():
             if not s.spec.same_signature(other.spec):

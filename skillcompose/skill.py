@@ -22,6 +22,7 @@ them in a loop until they finish, so one FSA runs in both modes.
 from __future__ import annotations
 
 import collections.abc
+import copy
 import functools
 import inspect
 import re
@@ -129,6 +130,13 @@ class Skill:
     @property
     def name(self) -> str:
         return self.spec.name
+
+    def with_backend(self, backend: str) -> Skill:
+        """A copy labelled with another backend (same implementation, same subclass)."""
+        twin = copy.copy(self)
+        twin.backend = backend
+        twin._instance = None
+        return twin
 
     @property
     def long_running(self) -> bool:

@@ -547,10 +547,9 @@ class FSARun:
 
     def _error(self, i: int, exc: Exception) -> str:
         events = self._events
-        steps = self.steps
-        if events is not None:  # as CompiledFSA.run(trace=True) reports it
+        steps = self.steps + 1  # the step that raised counts, as in CompiledFSA.run
+        if events is not None:
             self._collect()
-            steps += 1
             events.append(TraceStep(
                 steps, self.compiled.names[i], self.compiled.skills[i], ERROR, ERROR,
                 self._take(),

@@ -94,3 +94,17 @@ def test_two_registries_are_independent() -> None:
     a = Registry.from_modules([demo_skills])
     b = Registry()
     assert len(a) > 0 and len(b) == 0
+
+
+def test_relabelling_a_backend_keeps_the_skill_kind() -> None:
+    from skillcompose import FSASkill, fsa_skill
+
+    reg = Registry.from_modules([demo_skills])
+    child = FSA({"N": State("Noop", {}, {"success": "success"})}, "N", name="Child")
+    nested = fsa_skill(child, reg)
+    other = Registry.from_modules([demo_skills])
+    added = other.add(nested, backend="sim")
+    assert isinstance(added, FSASkill)
+    assert added.backend == "sim" and nested.backend == "default"
+    parent = FSA({"C": State("Child", {}, {"success": "success", "failure": "failure"})}, "C")
+    assert compile_fsa(parent, other, "sim").run(None, 0).outcome == "success"
