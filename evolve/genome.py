@@ -36,16 +36,23 @@ class SkillChoice:
     name: str
     outcomes: tuple[str, ...]
     params: tuple[ParamSpec, ...]
+    fixed: tuple[int | None, ...] = ()
+    """Per outcome: the terminal code it always ends in (a terminating skill), or None."""
+
+    def fixed_edge(self, outcome_index: int) -> int | None:
+        return self.fixed[outcome_index] if self.fixed else None
 
 
 class SkillSet:
     """The skills of a task that evolution may place, indexed, and the FSA's terminals."""
 
     def __init__(
-        self, choices: Iterable[SkillChoice], terminals: tuple[str, ...] = ("success", "failure")
+        self, choices: Iterable[SkillChoice], terminals: tuple[str, ...] = ("success", "failure"),
+        free_terminals: bool = True,
     ) -> None:
         self.choices = tuple(choices)
         self.terminals = tuple(terminals)
+        self.free_terminals = free_terminals
         self.index = {c.name: k for k, c in enumerate(self.choices)}
         if not self.choices:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
@@ -53,10 +60,22 @@ class SkillSet:
     @classmethod
     def from_task(cls, task: Task, terminals: tuple[str, ...] = ("success", "failure")) -> SkillSet:
         choices = []
+        enders = task.terminal_skills
+        codes = {t: -(k + 1) for k, t in enumerate(terminals)}
         for name in task.skill_names():
             spec = task.registry.spec(name)
-            choices.append(SkillChoice(spec.name, spec.outcomes, spec.params))
-        return cls(choices, terminals)
+            fixed: tuple[int | None, ...] = ()
+            if enders is not None and name in enders:
+                fixed = tuple(codes.get(o) for o in spec.outcomes)
+            choices.append(SkillChoice(spec.name, spec.outcomes, spec.params, fixed))
+        if enders is not None:
+            unknown = [n for n in enders if n not in task.skill_names()]
+            if unknown:
+                raise SeedFSAError(
+                    f"task {task.name}: terminal_skills {unknown} are not among the skills "
+                    f"evolution may place {list(task.skill_names())}"
+                )
+        return cls(choices, terminals, free_terminals=enders is None)
 
     def __len__(self) -> int:
         return len(self.choices)
@@ -204,7 +223,10 @@ class Genome:
             for x in n.params:
                 if not 0.0 <= x <= 1.0:
                     out.append(f"node {k} ({c.name}): parameter {x} outside [0, 1]")
-            for t in n.edges:
+            for o, t in enumerate(n.edges):
+                fixed = c.fixed_edge(o)
+                if fixed is not None and t != fixed:
+                    out.append(f"node {k} ({c.name}): outcome {c.outcomes[o]} must end the run")
                 if t >= 0 and t not in self.nodes:
                     out.append(f"node {k} ({c.name}): edge to missing node {t}")
                 if t < 0 and -t > nterm:

@@ -23,6 +23,7 @@ __all__ = [
     "change_start",
     "crossover",
     "delete_node",
+    "edge_for",
     "initialize",
     "mutate",
     "mutate_node",
@@ -39,11 +40,17 @@ def random_target(
     ids = [k for k in g.nodes if k != exclude]
     if extra is not None and extra not in g.nodes and extra != exclude:
         ids.append(extra)
-    nterm = len(skills.terminals)
+    nterm = len(skills.terminals) if skills.free_terminals else 0
     terms = [-(t + 1) for t in range(nterm) if -(t + 1) != exclude]
     total = len(ids) + weight * len(terms)
-    if total <= 0:
-        return ids[0] if ids else (terms[0] if terms else -1)
+    if total <= 0:  # nothing else to choose: keep the excluded target if it is allowed
+        if ids:
+            return ids[0]
+        if terms:
+            return terms[0]
+        if exclude is not None and (exclude >= 0 or skills.free_terminals):
+            return exclude
+        return next(iter(g.nodes)) if g.nodes else -1
     u = rng.random() * total
     if u < len(ids):
         return ids[min(int(u), len(ids) - 1)]
@@ -59,8 +66,20 @@ def random_node(
     k = int(rng.integers(len(skills)))
     c = skills.choices[k]
     params = [float(x) for x in rng.random(len(c.params))]
-    edges = [random_target(g, skills, rng, weight, extra=node_id) for _ in c.outcomes]
+    edges = [edge_for(g, skills, rng, weight, k, o, extra=node_id) for o in range(len(c.outcomes))]
     return Node(k, params, edges)
+
+
+def edge_for(
+    g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float, skill: int,
+    outcome: int, exclude: int | None = None, extra: int | None = None,
+) -> int:
+    """The edge of ``outcome`` of a node of skill ``skill``: fixed for a terminating skill's
+    terminal outcomes, else a random target."""
+    fixed = skills.choices[skill].fixed_edge(outcome)
+    if fixed is not None:
+        return fixed
+    return random_target(g, skills, rng, weight, exclude=exclude, extra=extra)
 
 
 def initialize(
@@ -74,7 +93,8 @@ def initialize(
         g.nodes[g.new_id()] = Node(k, [float(x) for x in rng.random(len(c.params))], [])
     for n in g.nodes.values():
         n.edges = [
-            random_target(g, skills, rng, weight) for _ in skills.choices[n.skill].outcomes
+            edge_for(g, skills, rng, weight, n.skill, o)
+            for o in range(len(skills.choices[n.skill].outcomes))
         ]
     eligible = _start_candidates(g)
     pool = eligible or list(g.nodes)
@@ -100,7 +120,10 @@ def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: floa
         v = crowded[int(rng.integers(len(crowded)))]
         src, o = inc[v][int(rng.integers(len(inc[v])))]
     else:
-        into_terminal = [(k, o) for k, n in g.nodes.items() for o, t in enumerate(n.edges) if t < 0]
+        into_terminal = [
+            (k, o) for k, n in g.nodes.items() for o, t in enumerate(n.edges)
+            if t < 0 and skills.choices[n.skill].fixed_edge(o) is None
+        ]
         if not into_terminal:
             return False
         src, o = into_terminal[int(rng.integers(len(into_terminal)))]
@@ -158,8 +181,11 @@ def mutate_node(
         fresh = random_node(g, skills, rng, weight, node_id)
         n.skill, n.params, n.edges = fresh.skill, fresh.params, fresh.edges
         return "skill"
-    o = int(rng.integers(len(n.edges)))
-    n.edges[o] = random_target(g, skills, rng, weight, exclude=n.edges[o])
+    c = skills.choices[n.skill]
+    free = [o for o in range(len(n.edges)) if c.fixed_edge(o) is None]
+    if free:
+        o = free[int(rng.integers(len(free)))]
+        n.edges[o] = random_target(g, skills, rng, weight, exclude=n.edges[o])
     for i in range(len(n.params)):
         if rng.random() < p_mut:
             x = n.params[i] + float(rng.normal(0.0, sigma))
@@ -259,7 +285,10 @@ def _implant(
         }
         edges: list[int] = []
         for o, t in enumerate(donor.edges):
-            if t >= 0 and t in pos:
+            fixed = c.fixed_edge(o)
+            if fixed is not None:
+                edges.append(fixed)  # a terminating skill's outcome ends the run
+            elif t >= 0 and t in pos:
                 edges.append(sub[pos[t]])  # an internal edge, recreated
             elif t < 0:
                 edges.append(t)  # into a terminal outcome: travels with the node

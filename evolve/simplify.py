@@ -7,7 +7,8 @@ The paper found redundant duplicate states in every evolved FSA (section 5). Aft
 2. merges exact duplicates: states with the same skill and parameters whose outcomes lead
    to equivalent states (partition refinement), which cannot change any run;
 3. tries removing each state, re-routing its incoming edges to one of its successors
-   (and a state to another state of the same skill), and keeps a removal when the mean
+   (and a state to another state of the same skill; never to a terminal outcome when the
+   task names its terminating skills), and keeps a removal when the mean
    fitness over ``trials`` fresh worlds is not worse than before. Every candidate meets
    the same worlds (common random numbers), so the comparison is paired.
 """
@@ -111,8 +112,10 @@ def simplify(
             for target in targets:
                 if target not in current.states and target not in current.terminals:
                     continue
-                if target in current.terminals and current.start == victim:
-                    continue
+                if target in current.terminals and (
+                    current.start == victim or task.terminal_skills is not None
+                ):
+                    continue  # only the task's terminating skills may end a run
                 cand = _remove(current, victim, target)
                 if cand is current or len(cand.states) >= len(current.states):
                     continue

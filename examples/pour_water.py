@@ -34,9 +34,11 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
 - Equation (1) is applied in its order of cases: 0 for ``success``; 20 when the jug is not
   in the gripper at the end; 2·d(jug, glass) on ``timeout``; d(jug, glass) otherwise, with d
   the Euclidean distance [m] between the jug's spout and the glass's rim centre.
-- In the paper only CheckSuccess ends a run. Our FSAs may route any outcome to a terminal,
-  so an FSA that ends in ``success`` while the water is not in the glass is scored as
-  "otherwise" (d, or 20 without the jug), never 0: success means the water is poured.
+- As in the paper, only CheckSuccess ends a run: the task sets ``terminal_skills``, so
+  evolution routes CheckSuccess's outcomes to the terminals and every other outcome to a
+  state. A hand-edited FSA may still route any outcome to a terminal; one that ends in
+  ``success`` while the water is not in the glass is scored as "otherwise" (d, or 20
+  without the jug), never 0: success means the water is poured.
 - A run whose skill raised (outcome ``error``) scores ``inf``; with these skills and this
   setup no run raises.
 """
@@ -141,4 +143,5 @@ def make_task(
         trials=trials,
         backend="sim",
         settings=settings,
+        terminal_skills=("CheckSuccess",),  # as in the paper, only CheckSuccess ends a run
     )

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import os
 import sys
 from collections.abc import Iterable, Iterator
 from importlib import metadata
@@ -217,6 +218,9 @@ def import_target(target: str) -> ModuleType:
             del sys.modules[mod_name]
             raise
         return module
+    cwd = os.getcwd()
+    if cwd not in sys.path:  # as `python -m` does: modules next to the user are found
+        sys.path.append(cwd)
     try:
         return importlib.import_module(target)
     except ModuleNotFoundError as exc:

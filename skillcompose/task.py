@@ -43,6 +43,10 @@ class Task:
       raised (default: the worst possible).
     - ``target``: a mean fitness at least this good counts as solved.
     - ``step_limit``: the paper's timeout; ``trials``: runs averaged per evaluation.
+    - ``terminal_skills``: the skills whose outcomes end a run, as the paper's CheckSuccess
+      (4.1, 4.3) and Push (4.2) do. Evolution then routes each outcome of those skills that
+      names a terminal to that terminal, and every other edge to a state, as in the paper.
+      ``None`` (default) lets any outcome of any state end the run.
     """
 
     name: str
@@ -57,6 +61,7 @@ class Task:
     skills: tuple[str, ...] | None = None
     settings: Mapping[str, Any] = field(default_factory=dict)
     error_fitness: float | None = None
+    terminal_skills: tuple[str, ...] | None = None
     ref: TaskRef | None = None
 
     @property

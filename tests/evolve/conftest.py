@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from evolve import SkillSet
@@ -11,6 +13,10 @@ def toy() -> Task:
     return load_task("examples.toy_task", p_fail=0.2)
 
 
-@pytest.fixture(scope="session")
-def toy_skills(toy: Task) -> SkillSet:
+@pytest.fixture(scope="session", params=["free terminals", "terminating skill"])
+def toy_skills(request: pytest.FixtureRequest, toy: Task) -> SkillSet:
+    """Both ways a run can end: any outcome to a terminal, or (as in the paper) only the
+    outcomes of a terminating skill, here PutDown."""
+    if request.param == "terminating skill":
+        return SkillSet.from_task(dataclasses.replace(toy, terminal_skills=("PutDown",)))
     return SkillSet.from_task(toy)

@@ -177,3 +177,26 @@ def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
     msg = str(err.value)
     assert "bad.yaml:4" in msg and "state A" in msg and "'Fly'" in msg
     assert "failure" in msg and "state B" in msg  # the unrouted outcome of PickBlock
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=seeds, size=sizes)
+def test_terminating_skills_alone_end_runs(toy: Task, seed: int, size: int) -> None:
+    """With terminal_skills set (the paper's model), only those skills' outcomes reach a
+    terminal, through initialisation, mutation and crossover alike."""
+    import dataclasses
+
+    skills = SkillSet.from_task(dataclasses.replace(toy, terminal_skills=("PutDown",)))
+    cfg = EvolutionConfig(population=2, p_mut=0.5, p_add=0.5, p_del=0.5)
+    rng = np.random.default_rng(seed)
+    g1 = initialize(skills, rng, size)
+    g2 = initialize(skills, rng, size)
+    for _ in range(5):
+        mutate(g1, skills, rng, cfg)
+        crossover(g1, g2, skills, rng)
+    for g in (g1, g2):
+        assert g.problems(skills) == []
+        for n in g.nodes.values():
+            c = skills.choices[n.skill]
+            for o, t in enumerate(n.edges):
+                assert (t < 0) == (c.name == "PutDown"), (c.name, c.outcomes[o], t)
