@@ -180,7 +180,7 @@ def report(
         "Task: `examples.pour_water` with `p_fail=0.2` (the paper's failure probability), "
         "step limit 20, fitness equation (1), one episode per evaluation unless said. A run "
         "*solves* when the best individual of a generation has fitness 0 (the water is in the "
-        "glass in every episode of its evaluation). The *solved rate* checks the exported, "
+        "glass in every episode of its evaluation). The *solved rate* checks the exported "
         f"FSA afterwards on {args.check_reps} fresh episodes at p_fail 0.2, as evolved and "
         "after `evolve.simplify`.",
         "",
