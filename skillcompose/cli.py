@@ -204,11 +204,17 @@ def cmd_validate(args: argparse.Namespace) -> int:
         checked = f"against {len(registry)} skills"
     else:
         checked = "structure only (give --skills or --task to check skills and parameters)"
+    from .graph import trap_states
+
     unreachable = fsa.unreachable()
+    traps = trap_states(fsa)
     print(f"{args.file}: valid, {len(fsa.states)} states, start {fsa.start}; {checked}")
     if unreachable:
         print(f"  warning: unreachable from {fsa.start}: {', '.join(unreachable)} "
               "(they never run; delete them or route an outcome to them)")
+    if traps:
+        print(f"  warning: no terminal outcome can be reached from {', '.join(traps)}: a run "
+              "that enters them ends in timeout; route an outcome to a state that ends")
     return 0
 
 

@@ -1,0 +1,105 @@
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from skillcompose import FSA, State, save_fsa
+from skillcompose.cli import main
+from skillcompose.draw import DrawingError, render, to_dot, to_mermaid
+from skillcompose.graph import to_networkx, trap_states
+
+LOOPY = FSA(
+    {
+        "Count_1": State("Count", {}, {"again": "Count_1", "done": "Coin_2"}),
+        "Coin_2": State("Coin", {"p": 0.9}, {"heads": "success", "tails": "Spin_3"}),
+        "Spin_3": State("Noop", {}, {"success": "Spin_4"}),
+        "Spin_4": State("Noop", {}, {"success": "Spin_3"}),
+    },
+    start="Count_1",
+    step_limit=12,
+    name="loopy",
+)
+
+
+def test_graph_and_trap_states() -> None:
+    g = to_networkx(LOOPY)
+    assert g.number_of_edges() == 6
+    assert g.nodes["Count_1"]["start"]
+    assert trap_states(LOOPY) == ["Spin_3", "Spin_4"]
+
+
+def test_dot_and_mermaid() -> None:
+    dot = to_dot(LOOPY)
+    assert '"Count_1" [label="Count_1", color=red' in dot  # the start is marked
+    assert '"Coin_2" -> "__success" [label="heads"]' in dot
+    assert '"Coin_2" [label="Coin_2\\np=0.9"' in dot
+    mmd = to_mermaid(LOOPY)
+    assert "[*] --> s0" in mmd and "s1 --> [*] : heads → success" in mmd
+
+
+def test_render_formats(tmp_path: Path) -> None:
+    assert render(LOOPY, tmp_path / "a.dot").read_text().startswith("digraph")
+    assert render(LOOPY, tmp_path / "a.mmd").read_text().startswith("stateDiagram-v2")
+    with pytest.raises(DrawingError, match="use a .dot, .mmd"):
+        render(LOOPY, tmp_path / "a.jpeg")
+    if shutil.which("dot") is None:
+        with pytest.raises(DrawingError, match="apt-get install graphviz"):
+            render(LOOPY, tmp_path / "a.svg")
+    else:
+        assert render(LOOPY, tmp_path / "a.svg").read_text().lstrip().startswith("<")
+
+
+def test_cli_run_validate_show_skills(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = save_fsa(LOOPY, tmp_path / "loopy.fsa.yaml").path
+    assert path is not None
+    skills = ["--skills", "tests.core.demo_skills"]
+    assert main(["run", path, *skills, "--trials", "500", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "500 run(s), seed 3" in out and "success" in out and "timeout" in out
+    assert main(["run", path, *skills, "--trials", "500", "--seed", "3"]) == 0
+    assert capsys.readouterr().out == out  # same seed, same report
+    assert main(["run", path, *skills, "--trace", "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "Count_1 (Count) -> again -> Count_1" in out and "count: ∅ => 1" in out
+    assert main(["validate", path, *skills]) == 0
+    out = capsys.readouterr().out
+    assert "valid, 4 states" in out and "no terminal outcome can be reached from Spin_3" in out
+    assert main(["show", path]) == 0
+    assert capsys.readouterr().out.startswith('digraph "loopy"')
+    assert main(["skills", *skills]) == 0
+    out = capsys.readouterr().out
+    assert "param approach: float in [0.05, 0.3] m (default 0.1)" in out
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("format: 1\nstart: A\nstates:\n  A: {skill: Nope, transitions: {x: success}}\n")
+    assert main(["run", str(bad), "--skills", "tests.core.demo_skills"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:4:14: state A: unknown skill 'Nope'; did you mean Noop?" in err
+    assert "Traceback" not in err
+    assert main(["run", str(bad)]) == 2
+    assert "no skills loaded; give --skills MODULE or --task TASK" in capsys.readouterr().err
+
+
+def test_cli_reports_skill_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = save_fsa(FSA({"X": State("Explode", {}, {"success": "success"})}, "X"),
+                 tmp_path / "x.yaml").path
+    assert f is not None
+    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trials", "3"]) == 0
+    captured = capsys.readouterr()
+    assert "error" in captured.out
+    assert "3 run(s) ended in error; first in state X: RuntimeError: motor fault" in captured.err
+    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trace"]) == 0
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_python_dash_m(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "skillcompose", "--help"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "evolve" in proc.stdout and "run" in proc.stdout
