@@ -42,7 +42,7 @@ def test_dot_and_mermaid() -> None:
 def test_render_formats(tmp_path: Path) -> None:
     assert render(LOOPY, tmp_path / "a.dot").read_text().startswith("digraph")
     assert render(LOOPY, tmp_path / "a.mmd").read_text().startswith("stateDiagram-v2")
-    with pytest.raises(DrawingError, match="use a .dot, .mmd"):
+    with pytest.raises(DrawingError, match=r"use a \.dot, \.mmd"):
         render(LOOPY, tmp_path / "a.jpeg")
     if shutil.which("dot") is None:
         with pytest.raises(DrawingError, match="apt-get install graphviz"):
