@@ -9,8 +9,9 @@ The paper found redundant duplicate states in every evolved FSA (section 5). Aft
 3. tries removing each state, re-routing its incoming edges to one of its successors
    (and a state to another state of the same skill; never to a terminal outcome when the
    task names its terminating skills), and keeps a removal when the mean
-   fitness over ``trials`` fresh worlds is not worse than before. Every candidate meets
-   the same worlds (common random numbers), so the comparison is paired.
+   fitness over ``trials`` fresh worlds is not worse than before and no fewer of those
+   worlds are solved (a rare success is not traded for a slightly better mean). Every
+   candidate meets the same worlds (common random numbers), so the comparison is paired.
 """
 
 from __future__ import annotations
@@ -77,25 +78,31 @@ def simplify(
     """Remove states that do not help ``fsa`` on ``task`` (see the module docstring).
 
     A change is kept when the mean fitness over ``trials`` worlds drawn from ``seed`` is no
-    worse than the current FSA's plus ``tolerance``. The result records what was removed and
-    the fitness before and after under ``meta['simplified']``.
+    worse than the current FSA's plus ``tolerance`` and its solved rate is no lower. The
+    result records what was removed and the fitness before and after under
+    ``meta['simplified']``.
     """
     registry, backend = task.registry, task.backend
 
-    def score(f: FSA) -> float:
+    def measure(f: FSA) -> tuple[float, float]:
+        """Mean fitness and solved rate (share of worlds at the task's target)."""
         try:
-            return task.evaluate(compile_fsa(f, registry, backend), seed, trials)
+            scores = [
+                x for _, x in task.run_trials(compile_fsa(f, registry, backend), seed, trials)
+            ]
         except Exception:
-            return task.worst
+            return task.worst, 0.0
+        return float(sum(scores) / len(scores)), sum(map(task.solved, scores)) / len(scores)
 
-    def no_worse(a: float, b: float) -> bool:
-        return a <= b + tolerance if task.minimize else a >= b - tolerance
+    def no_worse(a: tuple[float, float], b: tuple[float, float]) -> bool:
+        fit = a[0] <= b[0] + tolerance if task.minimize else a[0] >= b[0] - tolerance
+        return fit and a[1] >= b[1]  # never trade solved worlds for a better mean
 
     start_size = len(fsa.states)
     current = merge_duplicates(fsa.pruned())
     merged = start_size - len(current.states)
-    before = score(fsa)
-    best = score(current)
+    before = measure(fsa)
+    best = measure(current)
     removed: list[str] = [s for s in fsa.states if s not in current.states]
     changed = True
     while changed and len(current.states) > 1:
@@ -119,7 +126,7 @@ def simplify(
                 cand = _remove(current, victim, target)
                 if cand is current or len(cand.states) >= len(current.states):
                     continue
-                f = score(cand)
+                f = measure(cand)
                 if no_worse(f, best):
                     removed += [s for s in current.states if s not in cand.states]
                     current, best, changed = cand, f, True
@@ -131,8 +138,10 @@ def simplify(
             "states_after": len(current.states),
             "merged_duplicates": merged,
             "removed": removed,
-            "fitness_before": before,
-            "fitness_after": best,
+            "fitness_before": before[0],
+            "fitness_after": best[0],
+            "solved_rate_before": before[1],
+            "solved_rate_after": best[1],
             "trials": trials,
             "seed": seed,
         },

@@ -27,7 +27,7 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   fixed world has "one set of values" that solves it. ``setup`` draws nothing from the
   run's generator: every random draw of a run belongs to the skills.
 - "Only one set of values" is made exact by tolerances (see :mod:`skills.pour_water`): the
-  spout within 4 cm of the rim's centre horizontally and 1–15 cm above it, the jug tilted
+  spout within 4 cm of the rim's centre horizontally and 0–15 cm above it, the jug tilted
   60°–120° from upright; the yaw θ does not pour a jug and is free. The position window is
   about 0.1 % of the workspace, which is what makes the search hard; the tilt band is about
   two thirds of the (ρ, φ) square: a pour needs a tilt, not one exact angle.

@@ -29,10 +29,13 @@ upright and at most :data:`POUR_TILT_MAX_RAD` (120°): below that the water stay
 it the jug is nearly upside down and the water leaves through the whole mouth, wider than
 the glass. The water lands in the glass when the spout is over it: at most
 :data:`POUR_RADIUS_M` (4 cm, the glass's mouth) from the rim's centre horizontally, and
-between :data:`POUR_HEIGHT_MIN_M` (1 cm, clear of the rim) and :data:`POUR_HEIGHT_MAX_M`
-(15 cm, higher splashes) above it. Water leaving the jug anywhere else, or upside down, is
-spilled. The tilt of rotation (ρ, φ, θ) — roll about x, pitch about y, yaw about z, applied
-in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw θ turns the jug
+between :data:`POUR_HEIGHT_MIN_M` (0 cm: the spout level with the rim, not below it) and
+:data:`POUR_HEIGHT_MAX_M` (15 cm, higher splashes) above it. The window starts at the rim on
+purpose: equation (1) rewards bringing the jug close to the glass, and the closest point, the
+spout at the rim's centre, must be a place the jug pours from, or the fitness would lead
+evolution to a spot where pouring can never succeed. Water leaving the jug anywhere else, or
+upside down, is spilled. The tilt of rotation (ρ, φ, θ) — roll about x, pitch about y, yaw
+about z, applied in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw θ turns the jug
 about the vertical and never pours it. So "the one correct set of values" of the paper is
 the box of positions above times the band of tilts, with θ free. Water moves whenever the
 held jug's pose changes: after a rotation, a move and a grasp.
@@ -85,8 +88,8 @@ APPROACH_OFFSET_M = 0.06
 """MoveToObject stops this far in front of the jug (−x of the world), inside the tolerance."""
 POUR_RADIUS_M = 0.04
 """Horizontal distance from the spout to the rim's centre that still hits the glass."""
-POUR_HEIGHT_MIN_M = 0.01
-"""The spout must clear the rim by at least this much."""
+POUR_HEIGHT_MIN_M = 0.0
+"""The spout must not be below the rim (level with it pours; see the module docstring)."""
 POUR_HEIGHT_MAX_M = 0.15
 """From higher than this above the rim the water splashes out."""
 POUR_TILT_MIN_RAD = math.pi / 3

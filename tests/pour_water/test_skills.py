@@ -181,7 +181,8 @@ def test_rotating_the_held_jug_over_the_glass_pours_it() -> None:
         (over_glass(), (-2.0, 0.0, 0.0), "glass"),  # 115°
         (over_glass(), (math.pi, 0.0, 0.0), "spilled"),  # upside down
         (over_glass(0.2), (0.0, 1.5, 0.0), "spilled"),  # too high: splashes
-        (over_glass(0.005), (0.0, 1.5, 0.0), "spilled"),  # on the rim
+        (over_glass(-0.005), (0.0, 1.5, 0.0), "spilled"),  # below the rim
+        (over_glass(0.0), (0.0, 1.5, 0.0), "glass"),  # level with the rim: the fitness's best
         (over_glass(0.08, 0.05), (0.0, 1.5, 0.0), "spilled"),  # 5 cm off the centre
         ((0.5, -0.3, 1.1), (0.0, 1.5, 0.0), "spilled"),  # nowhere near the glass
     ],
