@@ -31,14 +31,14 @@ the glass. The water lands in the glass when the spout is over it: at most
 :data:`POUR_RADIUS_M` (4 cm, the glass's mouth) from the rim's centre horizontally, and
 between :data:`POUR_HEIGHT_MIN_M` (0 cm: the spout level with the rim, not below it) and
 :data:`POUR_HEIGHT_MAX_M` (15 cm, higher splashes) above it. The window starts at the rim on
-purpose: equation (1) rewards bringing the jug close to the glass, and the closest point, the
-spout at the rim's centre, must be a place the jug pours from, or the fitness would lead
+purpose: equation (1) rewards bringing the jug close to the glass, and the closest point,
+the spout at the rim's centre, must be a place the jug pours from, or the fitness would lead
 evolution to a spot where pouring can never succeed. Water leaving the jug anywhere else, or
 upside down, is spilled. The tilt of rotation (ρ, φ, θ) — roll about x, pitch about y, yaw
-about z, applied in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw θ turns the jug
-about the vertical and never pours it. So "the one correct set of values" of the paper is
-the box of positions above times the band of tilts, with θ free. Water moves whenever the
-held jug's pose changes: after a rotation, a move and a grasp.
+about z, applied in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw
+θ turns the jug about the vertical and never pours it. So "the one correct set of values" of
+the paper is the box of positions above times the band of tilts, with θ free. Water moves
+whenever the held jug's pose changes: after a rotation, a move and a grasp.
 
 Randomness comes only from the run's generator ``rng``: a skill whose preconditions hold
 draws one number and fails when it is below ``p_fail``; a skill whose preconditions fail
