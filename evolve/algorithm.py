@@ -100,6 +100,8 @@ class _Run:
         self.evaluator = evaluator
         self.rundir = rundir
         self.progress = progress
+        self._tty = bool(getattr(progress, "isatty", lambda: False)())
+        self._last_line = -math.inf  # wall time of the last progress line (not a terminal)
         self.trials = trials
         self.simplify_trials = simplify_trials
         self.compiler = GenomeCompiler(task, skills)
@@ -314,11 +316,16 @@ class _Run:
         filled = int(width * min(done, total + 1) / (total + 1))
         per_gen = rec.wall_time / max(1, len(self.history))
         eta = per_gen * max(0, total - rec.generation)
-        self.progress.write(
-            f"\r[{'#' * filled}{'.' * (width - filled)}] gen {rec.generation}/{total} "
+        text = (
+            f"[{'#' * filled}{'.' * (width - filled)}] gen {rec.generation}/{total} "
             f"best {rec.best:.4g} size {rec.best_size} {rec.evals_per_s:,.0f} evals/s "
-            f"ETA {_hms(eta)}   "
+            f"ETA {_hms(eta)}"
         )
+        if self._tty:  # one line, redrawn in place
+            self.progress.write(f"\r{text}   ")
+        elif rec.wall_time - self._last_line >= 5.0:  # a log: a line every 5 s at most
+            self._last_line = rec.wall_time
+            self.progress.write(text + "\n")
         self.progress.flush()
 
 

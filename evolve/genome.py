@@ -406,5 +406,5 @@ class GenomeCompiler:
                 o: (names[index[t]] if t >= 0 else terminals[-t - 1])
                 for o, t in zip(c.outcomes, n.edges, strict=True)
             })
-        fsa = FSA(states, names[0], terminals, self.step_limit)
+        fsa = FSA.trusted(states, names[0], terminals, self.step_limit)  # valid by construction
         return CompiledFSA(fsa, table, names, skill_names, self._key_types, self.backend)
