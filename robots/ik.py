@@ -1,8 +1,11 @@
 """Fast numerical inverse kinematics on Pinocchio.
 
-Damped least squares (Levenberg-Marquardt) on the tool frame's position and
-orientation error, joint limits enforced by clamping each step, random restarts
-inside the limits when an attempt stalls, and a wall-clock budget. A result
+Damped least squares (Levenberg-Marquardt) on the tool frame's ``log6`` pose
+error in the tool frame, damping proportional to the squared error (Newton steps
+once close), joint limits enforced by clamping and re-solving the rest of the
+step, the mirrored solution of PR2's roll-flex-roll elbow and wrist taken when a
+flex joint hits its limit, early restarts when progress stalls (alternately
+uniform and around the seed), and a wall-clock budget. A result
 always comes back, never an exception for an unsolved target: its status says
 ``success``, ``unreachable`` (outside the arm's reach, or no solution even
 without joint limits), ``joint_limits`` (solvable only outside the limits),
@@ -12,15 +15,17 @@ without joint limits), ``joint_limits`` (solvable only outside the limits),
 from __future__ import annotations
 
 import enum
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
 from robots.errors import InvalidConfiguration
-from robots.model import ARM_JOINTS, TORSO_JOINT, Arm, FloatArray, KinematicChain
+from robots.model import ARM_JOINTS, TORSO_JOINT, Arm, FloatArray, KinematicChain, _wrap_rad
 
 #: Default convergence tolerances: position [m] and orientation [rad].
 POSITION_TOLERANCE_M = 1e-6
@@ -102,6 +107,17 @@ class IKResult:
 
 CollisionCheck = Callable[[KinematicChain, FloatArray], bool]
 
+try:  # numpy's solve gufunc without the wrapper's per-call checks (~8 us of 10 on 6x6)
+    from numpy.linalg._umath_linalg import solve1 as _solve_gufunc
+
+    def _solve(matrix: FloatArray, rhs: FloatArray) -> FloatArray:
+        return np.asarray(_solve_gufunc(matrix, rhs))
+
+except ImportError:  # pragma: no cover - other numpy layouts
+
+    def _solve(matrix: FloatArray, rhs: FloatArray) -> FloatArray:
+        return np.asarray(np.linalg.solve(matrix, rhs), dtype=np.float64)
+
 
 @dataclass
 class IKSolver:
@@ -115,8 +131,17 @@ class IKSolver:
         seed: seed of the solver's random restarts.
         time_budget_s: wall-clock budget per request [s].
         max_iterations_per_attempt: iterations before a restart.
-        damping: Levenberg-Marquardt damping added to ``J J^T`` (scaled by the error).
+        damping: Levenberg-Marquardt damping added to ``J J^T`` (times ``|err|^2``).
         max_step_rad: largest coordinate change per iteration [rad or m].
+        stall_iterations: restart after this many iterations without a 1% error decrease
+            (not counted once ``|err|^2 <= precise_error_sq``, the Newton phase).
+        check_iteration / check_error_sq: restart if ``|err|^2`` is still above
+            ``check_error_sq`` after ``check_iteration`` iterations.
+        restart_spread: odd restarts are uniform in the limits, even ones Gaussian
+            around the initial coordinates with this fraction of each range.
+        mirror_wrists: at a flex limit, jump to the mirrored roll-flex-roll solution.
+        prismatic_scale: step weight of the torso [m per rad-equivalent]; small values
+            make the descent prefer the arm joints over the 0.31 m torso travel.
     """
 
     chain: KinematicChain
@@ -126,6 +151,13 @@ class IKSolver:
     max_iterations_per_attempt: int = 40
     damping: float = 1e-3
     max_step_rad: float = 0.6
+    stall_iterations: int = 4
+    check_iteration: int = 12
+    check_error_sq: float = 1e-2
+    restart_spread: float = 0.25
+    mirror_wrists: bool = True
+    prismatic_scale: float = 0.1
+    precise_error_sq: float = 1e-8
     position_tolerance_m: float = POSITION_TOLERANCE_M
     orientation_tolerance_rad: float = ORIENTATION_TOLERANCE_RAD
     rng: np.random.Generator = field(init=False, repr=False)
@@ -143,6 +175,13 @@ class IKSolver:
             np.isfinite(self.chain.upper_limits), self.chain.upper_limits, np.pi
         )
         self._reach = _ReachBound.build(self.chain, self.arm)
+        self._q = pin.neutral(self._model)
+        self._scalar_q, self._scalar_v = self.chain._scalar_q, self.chain._scalar_v
+        self._unbounded_q, self._unbounded_v = self.chain._unbounded_q, self.chain._unbounded_v
+        prismatic = np.array([n == TORSO_JOINT for n in self.chain.coordinate_names], dtype=bool)
+        self._scale = np.where(prismatic, self.prismatic_scale, 1.0)
+        self._scaled = bool(np.any(self._scale != 1.0))
+        self._mirrors = _find_mirrors(self.chain, self.arm) if self.mirror_wrists else ()
 
     def midpoint(self) -> FloatArray:
         """Coordinates midway between the limits (0 for unlimited ones) [m, rad]."""
@@ -152,77 +191,133 @@ class IKSolver:
             finite, 0.5 * (np.where(finite, low, 0.0) + np.where(finite, high, 0.0)), 0.0
         )
 
-    def _residual(self, theta: FloatArray, target: IKTarget) -> tuple[FloatArray, FloatArray]:
-        """Error (6 or 3,) and Jacobian w.r.t. the coordinates at ``theta``."""
-        q = self.chain.q_from_coordinates(theta)
-        jac = pin.computeFrameJacobian(
-            self._model, self._data, q, self._fid, pin.LOCAL_WORLD_ALIGNED
+    def _load_q(self, theta: FloatArray) -> FloatArray:
+        """Fill the preallocated Pinocchio configuration from chain coordinates."""
+        if self._has_planar:
+            return self.chain.q_from_coordinates(theta)
+        q = self._q
+        q[self._scalar_q] = theta[self._scalar_v]
+        angles = theta[self._unbounded_v]
+        q[self._unbounded_q] = np.cos(angles)
+        q[self._unbounded_q + 1] = np.sin(angles)
+        return q
+
+    def _residual(
+        self, theta: FloatArray, target: IKTarget, goal: pin.SE3 | None
+    ) -> tuple[FloatArray, FloatArray, float, float]:
+        """Error, its Jacobian w.r.t. the coordinates, and the position [m] and
+        orientation [rad] errors at ``theta``.
+
+        Pose targets: the error is ``log6(current^-1 * goal)`` in the tool frame and the
+        Jacobian ``Jlog6 @ J_local`` (a step ``d`` with ``jac @ d = err`` reaches the goal
+        to first order). Position targets: world position error, world-axes Jacobian.
+        """
+        model, data, fid = self._model, self._data, self._fid
+        pin.computeJointJacobians(model, data, self._load_q(theta))
+        placement = pin.updateFramePlacement(model, data, fid)
+        if goal is None:
+            jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+            err = target.position_m - placement.translation
+            if self._has_planar:
+                jac = jac @ self.chain.velocity_from_coordinate_rates(theta)
+            return err, jac, math.sqrt(err @ err), 0.0
+        current_to_goal = placement.actInv(goal)
+        err = pin.log6(current_to_goal).vector
+        jac = pin.Jlog6(current_to_goal.inverse()) @ pin.getFrameJacobian(
+            model, data, fid, pin.LOCAL
         )
-        placement = self._data.oMf[self._fid]
         if self._has_planar:
             jac = jac @ self.chain.velocity_from_coordinate_rates(theta)
-        err_p = target.position_m - placement.translation
-        if target.rotation is None:
-            return err_p, jac[:3]
-        err_o = pin.log3(target.rotation @ placement.rotation.T)
-        return np.concatenate([err_p, err_o]), jac
+        translation = current_to_goal.translation
+        angular = err[3:]
+        return err, jac, math.sqrt(translation @ translation), math.sqrt(angular @ angular)
 
-    def _converged(self, err: FloatArray) -> bool:
-        if np.linalg.norm(err[:3]) > self.position_tolerance_m:
-            return False
-        return err.shape[0] == 3 or bool(np.linalg.norm(err[3:]) <= self.orientation_tolerance_rad)
+    def _converged(self, position_error_m: float, orientation_error_rad: float) -> bool:
+        return (
+            position_error_m <= self.position_tolerance_m
+            and orientation_error_rad <= self.orientation_tolerance_rad
+        )
 
     def _attempt(
         self,
         theta: FloatArray,
         target: IKTarget,
+        goal: pin.SE3 | None,
         free: FloatArray,
         low: FloatArray,
         high: FloatArray,
         deadline: float,
     ) -> tuple[FloatArray, FloatArray, int, bool]:
-        """One damped-least-squares descent; returns (theta, error, iterations, converged)."""
-        best_norm = np.inf
+        """One damped-least-squares descent; returns (theta, error, iterations, converged).
+
+        Damping ``lambda = damping * |err|^2 + 1e-9``: large far from the goal, vanishing
+        near it (Newton steps once close: quadratic convergence). Coordinates a step
+        pushes past a limit are clamped there and the rest of the step is re-solved
+        without them. The attempt gives up early when the error stops shrinking or is
+        still large after ``check_iteration`` iterations.
+        """
+        best_norm = math.inf
         stall = 0
-        eye = np.eye(3 if target.rotation is None else 6)
+        theta = theta.copy()
+        all_free = bool(free.all())
+        free_index = np.flatnonzero(free)
         for iteration in range(1, self.max_iterations_per_attempt + 1):
-            err, jac = self._residual(theta, target)
-            if self._converged(err):
+            err, jac, pos_err, rot_err = self._residual(theta, target, goal)
+            if pos_err <= self.position_tolerance_m and rot_err <= self.orientation_tolerance_rad:
                 return theta, err, iteration, True
             norm = float(err @ err)
-            if norm < 0.999 * best_norm:
+            if norm < 0.99 * best_norm:
                 best_norm, stall = norm, 0
-            else:
+            elif norm > self.precise_error_sq:
                 stall += 1
-                if stall >= 4:
+                if stall >= self.stall_iterations:
                     return theta, err, iteration, False
+            if iteration >= self.check_iteration and norm > self.check_error_sq:
+                return theta, err, iteration, False
             if time.perf_counter() > deadline:
                 return theta, err, iteration, False
-            # active set: drop coordinates resting on a limit that the step pushes past
-            active = free.copy()
-            damping = (self.damping * norm + 1e-12) * eye
-            for attempt in range(4):
-                jac_active = jac[:, active]
-                step = jac_active.T @ np.linalg.solve(jac_active @ jac_active.T + damping, err)
-                if attempt == 3:
+            damping = self.damping * norm + 1e-9
+            if self._scaled:
+                jac = jac * self._scale
+            # the common case (nothing fixed, no limit hit) avoids fancy indexing
+            index: slice | NDArray[np.intp] = slice(None) if all_free else free_index
+            jac_active = jac if all_free else jac[:, free_index]
+            for clamp_pass in range(3):
+                gram = jac_active @ jac_active.T
+                gram.flat[:: gram.shape[0] + 1] += damping
+                step = jac_active.T @ _solve(gram, err)
+                if self._scaled:
+                    step *= self._scale[index]
+                largest = float(np.abs(step).max())
+                if largest > self.max_step_rad:
+                    step *= self.max_step_rad / largest
+                moved = theta[index] + step
+                if self._mirrors and clamp_pass == 0:
+                    if all_free:
+                        self._mirror(moved, low, high)
+                    else:  # fixed coordinates have low == high: never mirrored
+                        full = theta.copy()
+                        full[index] = moved
+                        self._mirror(full, low, high)
+                        moved = full[index]
+                lo, hi = low[index], high[index]
+                clipped = (moved < lo) | (moved > hi)
+                if clamp_pass == 2 or not clipped.any():
+                    theta[index] = np.minimum(np.maximum(moved, lo), hi)
                     break
-                moved = theta[active] + step
-                blocked = ((moved < low[active]) & (theta[active] <= low[active] + 1e-12)) | (
-                    (moved > high[active]) & (theta[active] >= high[active] - 1e-12)
-                )
-                if not blocked.any():
+                # clamp the coordinates the step pushes past a limit, then re-solve the
+                # error they leave (linear prediction) with the others
+                indices = free_index if isinstance(index, slice) else index
+                held = indices[clipped]
+                clamped = np.minimum(np.maximum(moved[clipped], lo[clipped]), hi[clipped])
+                err = err - jac[:, held] @ ((clamped - theta[held]) / self._scale[held])
+                theta[held] = clamped
+                index = indices[~clipped]
+                if index.size == 0:
                     break
-                indices = np.flatnonzero(active)
-                active[indices[blocked]] = False
-                if not active.any():
-                    return theta, err, iteration, False
-            largest = np.max(np.abs(step))
-            if largest > self.max_step_rad:
-                step *= self.max_step_rad / largest
-            theta = theta.copy()
-            theta[active] = np.clip(theta[active] + step, low[active], high[active])
-        err, _ = self._residual(theta, target)
-        return theta, err, self.max_iterations_per_attempt, self._converged(err)
+                jac_active = jac[:, index]
+        err, _, pos_err, rot_err = self._residual(theta, target, goal)
+        return theta, err, self.max_iterations_per_attempt, self._converged(pos_err, rot_err)
 
     def solve(
         self,
@@ -274,11 +369,13 @@ class IKSolver:
                 "the target is farther from the shoulder than the arm's length",
             )
 
+        goal = None if target.rotation is None else pin.SE3(target.rotation, target.position_m)
+        seed_theta = theta.copy()
         iterations = restarts = 0
         best: tuple[float, FloatArray, FloatArray] | None = None
         saw_collision = False
         while True:
-            theta, err, its, ok = self._attempt(theta, target, free, low, high, deadline)
+            theta, err, its, ok = self._attempt(theta, target, goal, free, low, high, deadline)
             iterations += its
             theta = chain.normalise(theta)
             if ok:
@@ -295,7 +392,7 @@ class IKSolver:
             ):
                 break
             restarts += 1
-            theta = np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
+            theta = np.where(free, self._restart(seed_theta, restarts), theta)
             if chain.has_base:
                 theta[:3] = np.where(free[:3], best[1][:3], theta[:3])
 
@@ -311,12 +408,42 @@ class IKSolver:
             status, why = IKStatus.NOT_CONVERGED, f"no solution within {budget * 1e3:.1f} ms"
         return self._result(status, theta, err, iterations, restarts, start, why)
 
+    def _mirror(self, moved: FloatArray, low: FloatArray, high: FloatArray) -> None:
+        """Where a step pushes a flex joint past a limit, switch to the mirrored
+        solution ``(roll + pi, -flex, roll + pi)`` of its roll-flex-roll triple when
+        that lies inside the limits (same tool pose; see :func:`_find_mirrors`)."""
+        for first, flex, last in self._mirrors:
+            value = moved[flex]
+            if low[flex] <= value <= high[flex] or not low[flex] <= -value <= high[flex]:
+                continue
+            rolled = []
+            for roll in (first, last):
+                options = [moved[roll] + math.pi, moved[roll] - math.pi]
+                if self.chain.continuous[roll]:
+                    options = [float(_wrap_rad(np.array(options[0])))]
+                inside = [v for v in options if low[roll] <= v <= high[roll]]
+                if not inside:
+                    break
+                rolled.append(min(inside, key=abs))
+            else:
+                moved[first], moved[flex], moved[last] = rolled[0], -value, rolled[1]
+
+    def _restart(self, seed_theta: FloatArray, restart: int) -> FloatArray:
+        """Restart coordinates: odd restarts uniform inside the limits, even ones
+        near the seed (Gaussian, ``restart_spread`` of each range, clipped)."""
+        if restart % 2 == 1 or self.restart_spread <= 0.0:
+            return self.rng.uniform(self._sample_low, self._sample_high)
+        spread = self.restart_spread * (self._sample_high - self._sample_low)
+        near = seed_theta + spread * self.rng.standard_normal(seed_theta.shape[0])
+        return np.clip(near, self._sample_low, self._sample_high)
+
     def _solvable_without_limits(
         self, target: IKTarget, theta: FloatArray, free: FloatArray
     ) -> bool:
         inf = np.full_like(theta, np.inf)
         low = np.where(free, -inf, theta)
         high = np.where(free, inf, theta)
+        goal = None if target.rotation is None else pin.SE3(target.rotation, target.position_m)
         deadline = time.perf_counter() + 0.005
         for attempt in range(4):
             start = (
@@ -324,7 +451,7 @@ class IKSolver:
                 if attempt == 0
                 else np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
             )
-            _, _, _, ok = self._attempt(start, target, free, low, high, deadline)
+            _, _, _, ok = self._attempt(start, target, goal, free, low, high, deadline)
             if ok:
                 return True
         return False
@@ -349,6 +476,35 @@ class IKSolver:
             time.perf_counter() - start,
             message,
         )
+
+
+def _find_mirrors(chain: KinematicChain, arm: Arm) -> tuple[tuple[int, int, int], ...]:
+    """Coordinate triples ``(roll, flex, roll)`` with ``(a, b, c)`` and
+    ``(a + pi, -b, c + pi)`` giving the same tool pose (PR2's elbow and wrist:
+    two parallel roll axes through the flex axis), verified numerically on
+    seeded random configurations."""
+    names = ARM_JOINTS[arm]
+    found = []
+    rng = np.random.default_rng(0)
+    for first_name, flex_name, last_name in zip(names, names[1:], names[2:], strict=False):
+        if not all(n in chain.coordinate_names for n in (first_name, flex_name, last_name)):
+            continue
+        first, flex, last = (chain.coordinate_index(n) for n in (first_name, flex_name, last_name))
+        same = True
+        for _ in range(4):
+            theta = chain.sample_coordinates(rng)
+            mirrored = theta.copy()
+            mirrored[first] += np.pi
+            mirrored[flex] = -mirrored[flex]
+            mirrored[last] += np.pi
+            a = chain.transform_tool_to_world(arm, theta)
+            b = chain.transform_tool_to_world(arm, mirrored)
+            if not np.allclose(a.homogeneous, b.homogeneous, atol=1e-9):
+                same = False
+                break
+        if same:
+            found.append((first, flex, last))
+    return tuple(found)
 
 
 @dataclass(frozen=True)
