@@ -19,6 +19,7 @@ Regenerate the shipped data set and weights with::
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -33,11 +34,18 @@ from robots.model import TORSO_JOINT, Arm, FloatArray, RobotModel, load_pr2
 
 DATA_DIR = Path(__file__).parent / "data"
 DATASET_PATH = DATA_DIR / "reachability_pr2_v1.npz"
-WEIGHTS_PATH = DATA_DIR / "reachability_rbf_v1.npz"
+WEIGHTS_PATH = DATA_DIR / "reachability_rbf_v2.npz"
 FEATURES = ("x_m", "y_m", "z_m", "bearing_rad", "torso_height_m")
 #: Sampling box of the data set in the robot frame: x, y, z [m], torso h [m].
 DOMAIN = {"x_m": (0.0, 1.2), "y_m": (-1.0, 1.0), "z_m": (0.3, 1.6), "torso_height_m": (0.0, 0.31)}
 HELD_OUT_FRACTION = 0.25
+#: Shoulder pan joint origins in the robot frame at torso height 0 [m] (left, right),
+#: and the wrist flex origin's distance behind the tool frame along the grasp [m].
+SHOULDER_LEFT_M = (-0.05, 0.188, 0.790675)
+SHOULDER_RIGHT_M = (-0.05, -0.188, 0.790675)
+WRIST_BEHIND_TOOL_M = 0.18
+#: Name of the distance the RBF units measure (stored with the weights).
+METRIC = "x,y,z-h,bearing,wrist-shoulder distances"
 _IK_RESTARTS = 12
 
 
@@ -170,9 +178,12 @@ class RBFClassifier:
     """Radial-basis-function network: Gaussian units on k-means centres, linear
     read-out fitted by ridge regression on one-hot labels; 5 inputs, 3 classes.
 
-    The units measure distance in ``(x, y, z - h, bearing)`` (standardised): the
-    torso is a vertical prismatic joint, so reachability depends on the object's
-    height relative to the torso, ``z - h``, not on ``z`` and ``h`` separately.
+    The units measure distance in ``(x, y, z - h, bearing, d_left, d_right)``
+    (standardised), all computed from the 5 inputs: the torso is a vertical
+    prismatic joint, so reachability depends on the object's height relative to
+    the torso, ``z - h``; ``d_left`` / ``d_right`` are the distances from each
+    shoulder to where the wrist must be for the grasp (the object minus 0.18 m
+    along the bearing), the quantity the arm's length bounds.
 
     ``reach_margin`` biases the decision towards "unreachable": a reaching class
     wins only if its score beats the unreachable score by this margin.
@@ -191,9 +202,9 @@ class RBFClassifier:
         inputs: FloatArray,
         labels: NDArrayInt,
         *,
-        n_centres: int = 2000,
-        width_factor: float = 1.0,
-        ridge: float = 1e-8,
+        n_centres: int = 3000,
+        width_factor: float = 1.3,
+        ridge: float = 1e-5,
         seed: int = 0,
         kmeans_iterations: int = 10,
     ) -> RBFClassifier:
@@ -217,20 +228,52 @@ class RBFClassifier:
         weights = np.linalg.solve(gram, phi.T @ onehot)
         return cls(centres, width, weights, mean, scale)
 
+    def __post_init__(self) -> None:
+        # single-query fast path: the Gaussian exponent -|z - c|^2 / (2 w^2) expanded
+        # as z @ (c / w^2) - |c|^2 / (2 w^2) - |z|^2 / (2 w^2), centres stored
+        # transposed (one contiguous row per input dimension), read-out transposed
+        gain = 1.0 / (2.0 * self.width * self.width)
+        self._gain = gain
+        self._projection = np.ascontiguousarray(2.0 * gain * self.centres.T)
+        self._offset = -gain * np.einsum("ij,ij->i", self.centres, self.centres)
+        self._readout = np.ascontiguousarray(self.weights[:-1].T)
+        self._bias = np.array(self.weights[-1])
+
     def scores(self, inputs: FloatArray) -> FloatArray:
-        """Class scores (k x 3)."""
-        z = (_metric_inputs(np.atleast_2d(inputs)) - self.mean) / self.scale
-        return np.asarray(_design(z, self.centres, self.width) @ self.weights)
+        """Class scores (k x 3), without ``reach_margin``; in blocks of 512 rows."""
+        z_all = (_metric_inputs(np.atleast_2d(inputs)) - self.mean) / self.scale
+        out = np.empty((len(z_all), 3))
+        for first in range(0, len(z_all), 512):
+            z = z_all[first : first + 512]
+            exponent = z @ self._projection
+            exponent += self._offset
+            exponent -= self._gain * np.einsum("ij,ij->i", z, z)[:, None]
+            out[first : first + 512] = np.exp(exponent, out=exponent) @ self._readout.T
+        return out + self._bias
 
     def predict(self, inputs: FloatArray) -> NDArrayInt:
         """Labels (k,): 0 unreachable, 1 left, 2 right."""
+        inputs = np.asarray(inputs, dtype=np.float64)
+        if inputs.ndim == 1 or inputs.shape[0] == 1:
+            return np.array([self.predict_one(inputs.reshape(-1))])
         s = self.scores(inputs)
         s[:, 0] += self.reach_margin
         return np.asarray(np.argmax(s, axis=1))
 
+    def predict_one(self, row: FloatArray) -> int:
+        """Label of one input row ``(x, y, z, bearing, h)``: 0, 1 or 2."""
+        z = (_metric_row(row) - self.mean) / self.scale
+        exponent = z @ self._projection
+        exponent += self._offset
+        exponent -= self._gain * float(z @ z)
+        s = self._readout @ np.exp(exponent, out=exponent) + self._bias
+        s[0] += self.reach_margin
+        return int(np.argmax(s))
+
     def save(self, path: Path) -> None:
         np.savez_compressed(
             path,
+            metric=np.array(METRIC),
             centres=self.centres,
             width=self.width,
             weights=self.weights,
@@ -246,6 +289,12 @@ class RBFClassifier:
                 f"{path} not found; retrain with `python -m robots.reachability train`"
             )
         with np.load(path) as d:
+            metric = str(d["metric"]) if "metric" in d else "x,y,z-h,bearing"
+            if metric != METRIC:
+                raise DatasetError(
+                    f"{path}: weights for the metric {metric!r}, this version uses "
+                    f"{METRIC!r}; retrain with `python -m robots.reachability train`"
+                )
             return cls(
                 d["centres"],
                 float(d["width"]),
@@ -257,8 +306,34 @@ class RBFClassifier:
 
 
 def _metric_inputs(inputs: FloatArray) -> FloatArray:
-    """(x, y, z, bearing, h) -> (x, y, z - h, bearing)."""
-    return np.column_stack([inputs[:, 0], inputs[:, 1], inputs[:, 2] - inputs[:, 4], inputs[:, 3]])
+    """(x, y, z, bearing, h) rows -> (x, y, z - h, bearing, d_left, d_right) rows [m, rad]."""
+    x, y, z, bearing, h = (inputs[:, i] for i in range(5))
+    wrist_x = x - WRIST_BEHIND_TOOL_M * np.cos(bearing)
+    wrist_y = y - WRIST_BEHIND_TOOL_M * np.sin(bearing)
+    height = z - h
+    out = [x, y, height, bearing]
+    for sx, sy, sz in (SHOULDER_LEFT_M, SHOULDER_RIGHT_M):
+        out.append(np.sqrt((wrist_x - sx) ** 2 + (wrist_y - sy) ** 2 + (height - sz) ** 2))
+    return np.column_stack(out)
+
+
+def _metric_row(row: FloatArray) -> FloatArray:
+    """:func:`_metric_inputs` for one row, in scalar arithmetic (the fast path)."""
+    x, y, z, bearing, h = (float(v) for v in row)
+    wrist_x = x - WRIST_BEHIND_TOOL_M * math.cos(bearing)
+    wrist_y = y - WRIST_BEHIND_TOOL_M * math.sin(bearing)
+    height = z - h
+    (lx, ly, lz), (rx, ry, rz) = SHOULDER_LEFT_M, SHOULDER_RIGHT_M
+    return np.array(
+        [
+            x,
+            y,
+            height,
+            bearing,
+            math.sqrt((wrist_x - lx) ** 2 + (wrist_y - ly) ** 2 + (height - lz) ** 2),
+            math.sqrt((wrist_x - rx) ** 2 + (wrist_y - ry) ** 2 + (height - rz) ** 2),
+        ]
+    )
 
 
 def _sq_dist(a: FloatArray, b: FloatArray) -> FloatArray:
