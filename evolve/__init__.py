@@ -16,7 +16,7 @@ saved as an editable FSA file that ``skillcompose run`` runs and ``--seed-fsa`` 
 from __future__ import annotations
 
 from .algorithm import EvolutionResult, GenerationRecord, evolve
-from .config import EvolutionConfig
+from .config import PRESETS, EvolutionConfig
 from .errors import CheckpointError, EvolutionConfigError, EvolutionError, SeedFSAError
 from .evaluation import (
     BACKENDS,
@@ -42,6 +42,7 @@ from .simplify import merge_duplicates, simplify
 
 __all__ = [
     "BACKENDS",
+    "PRESETS",
     "CheckpointError",
     "EvolutionConfig",
     "EvolutionConfigError",

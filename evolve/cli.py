@@ -19,7 +19,7 @@ from skillcompose.errors import SkillcomposeError
 from skillcompose.task import load_task, parse_settings
 
 from .algorithm import evolve
-from .config import EvolutionConfig
+from .config import PRESETS, EvolutionConfig
 from .errors import EvolutionError
 from .evaluation import BACKENDS
 from .rundir import RunDir
@@ -38,6 +38,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--generations", type=int, help="generation budget (default 1000)")
     p.add_argument("--population", type=int, help="individuals N (default 300, table 1)")
     p.add_argument("--initial-nodes", type=int, help="initial nodes S (default 50, table 1)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="starting settings: paper (table 1, the default) or robust (our best "
+                   "options: 3 shared trials, elitism 2, tournament 3, S=12, sigma 0.1); "
+                   "the flags below override it")
+    p.add_argument("--tournament", type=int, help="tournament size (default 2)")
+    p.add_argument("--param-sigma", type=float,
+                   help="standard deviation of parameter noise in [0, 1] units (default 0.05)")
     p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
     p.add_argument("--workers", type=int, default=None,
                    help="evaluation workers (default: all cores for process/ray)")
@@ -65,10 +72,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _config(args: argparse.Namespace) -> EvolutionConfig:
-    changes: dict[str, Any] = {}
+    changes: dict[str, Any] = dict(PRESETS[args.preset])
     for opt, name in (
         ("generations", "generations"), ("population", "population"),
         ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
+        ("tournament", "tournament"), ("param_sigma", "param_sigma"),
         ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
     ):
         v = getattr(args, opt)
