@@ -83,7 +83,7 @@ def _targets(chain: KinematicChain, arm: str, n: int, seed: int) -> list[IKTarge
 def bench_ik(model: RobotModel, n: int, n_ipopt: int) -> None:
     _header(f"IK on {n} reachable pose targets per chain (seed from the limits' midpoint)")
     try:
-        import trac_ik  # type: ignore[import-untyped]
+        import trac_ik
     except ImportError:
         trac_ik = None
     for name, arm in CHAINS:

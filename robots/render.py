@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 from matplotlib.figure import Figure
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # type: ignore[import-untyped]
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from robots.collision import BASE_HALF_EXTENTS_M, Box, Scene
 from robots.model import ARMS, TOOL_FRAMES, FloatArray, RobotModel, RobotPose
