@@ -18,16 +18,14 @@ Settings (``make_task(**settings)``): ``trials`` (default 1), ``step_limit`` (de
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from collections import Counter
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-
-from examples.pour_water import fitness, setup
-from skillcompose import Blackboard, Registry, compile_fsa, load_fsa, trial_seeds
-from skillcompose.task import Task, TaskError
+from examples import pour_water as pour_water_task
+from skillcompose import Registry, compile_fsa, load_fsa
+from skillcompose.task import Task
 from skills import kinematic, pour_water
 
 __all__ = ["REFERENCE_FSA", "main", "make_task", "register", "run_reference"]
@@ -42,31 +40,18 @@ def register(registry: Registry) -> None:
 
 
 def make_task(*, trials: int = 1, step_limit: int = 20) -> Task:
-    """The pour-water task of :mod:`examples.pour_water` on the kinematic backend."""
-    for name, value in (("trials", trials), ("step_limit", step_limit)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise TaskError(
-                f"kinematic_pour: setting {name}={value!r} must be a positive whole number"
-            )
+    """The pour-water task of :mod:`examples.pour_water` on the kinematic backend: the same
+    world, fitness and terminating skill, with the kinematic skills' registry."""
+    base = pour_water_task.make_task(p_fail=0.0, trials=trials, step_limit=step_limit)
     registry = Registry(backend="kinematic")
     register(registry)
-
-    def world(rng: np.random.Generator) -> Blackboard:
-        return setup(rng, p_fail=0.0)  # p_fail is the abstract skills' knob; unused here
-
-    settings: dict[str, Any] = {"trials": trials, "step_limit": step_limit}
-    return Task(
+    return dataclasses.replace(
+        base,
         name="kinematic_pour",
         registry=registry,
-        setup=world,
-        fitness=fitness,
-        minimize=True,
-        target=0.0,
-        step_limit=step_limit,
-        trials=trials,
         backend="kinematic",
         skills=tuple(s.name for s in pour_water.SKILLS),
-        settings=settings,
+        settings={"trials": trials, "step_limit": step_limit},
     )
 
 
@@ -75,18 +60,14 @@ def run_reference(runs: int, seed: int = 0) -> tuple[int, Counter[str], float]:
 
     Returns (runs solved, i.e. fitness 0; outcome counts; mean seconds per run).
     """
-    registry = Registry()
-    register(registry)
-    compiled = compile_fsa(load_fsa(REFERENCE_FSA), registry, "kinematic")
+    task = make_task()
+    compiled = compile_fsa(load_fsa(REFERENCE_FSA), task.registry, "kinematic")
     solved = 0
     outcomes: Counter[str] = Counter()
     start = time.perf_counter()
-    for s in trial_seeds(seed, runs):
-        rng = np.random.default_rng(s)
-        bb = setup(rng, p_fail=0.0)
-        result = compiled.run(bb, rng)
+    for result, score in task.run_trials(compiled, seed, runs):
         outcomes[result.outcome] += 1
-        solved += fitness(result.outcome, bb, result.steps) == 0.0
+        solved += task.solved(score)
     return solved, outcomes, (time.perf_counter() - start) / max(runs, 1)
 
 
