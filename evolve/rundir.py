@@ -147,53 +147,19 @@ def fsa_dot(fsa: FSA) -> str:
 
 
 def draw_fsa(fsa: FSA, path: str | os.PathLike[str]) -> None:
-    """A PNG drawing of an FSA: states on a circle in breadth-first order from the start
-    (red), terminal outcomes (green) on the right, edges labelled with their outcomes."""
-    import math
+    """A picture of an FSA (Graphviz when installed, else matplotlib): see
+    :func:`skillcompose.draw.render`."""
+    from skillcompose.draw import render
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    order = fsa.reachable() + [s for s in fsa.states if s not in set(fsa.reachable())]
-    n = len(order)
-    pos: dict[str, tuple[float, float]] = {}
-    for i, s in enumerate(order):
-        a = math.pi - 2 * math.pi * i / max(n, 1)
-        pos[s] = (math.cos(a), math.sin(a)) if n > 1 else (0.0, 0.0)
-    for j, t in enumerate(fsa.terminals):
-        pos[t] = (1.9, 0.8 - 1.6 * j / max(1, len(fsa.terminals) - 1))
-    fig, ax = plt.subplots(figsize=(8, 6))
-    pairs: dict[tuple[str, str], list[str]] = {}
-    for s, st in fsa.states.items():
-        for o, t in st.transitions.items():
-            pairs.setdefault((s, t), []).append(o)
-    for (s, t), outs in pairs.items():
-        (x0, y0), (x1, y1) = pos[s], pos[t]
-        label = ", ".join(outs)
-        if s == t:
-            ax.annotate(label, (x0, y0 + 0.16), ha="center", fontsize=7, color="tab:gray")
-            continue
-        ax.annotate("", (x1, y1), (x0, y0), arrowprops={
-            "arrowstyle": "->", "color": "tab:gray", "shrinkA": 18, "shrinkB": 18,
-            "connectionstyle": "arc3,rad=0.12"})
-        ax.annotate(label, ((2 * x0 + 3 * x1) / 5, (2 * y0 + 3 * y1) / 5), fontsize=7,
-                    ha="center", color="tab:gray")
-    for s in order:
-        color = "tab:red" if s == fsa.start else "tab:blue"
-        ax.annotate(s, pos[s], ha="center", va="center", fontsize=8,
-                    bbox={"boxstyle": "round", "fc": "white", "ec": color})
-    for t in fsa.terminals:
-        ax.annotate(t, pos[t], ha="center", va="center", fontsize=8,
-                    bbox={"boxstyle": "circle", "fc": "white", "ec": "tab:green"})
-    ax.set_xlim(-1.4, 2.3)
-    ax.set_ylim(-1.3, 1.3)
-    ax.set_title(f"{fsa.name or 'FSA'} (red: start; green: terminal outcomes)")
-    ax.axis("off")
-    fig.tight_layout()
-    _save_fig(fig, Path(path))
-    plt.close(fig)
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:  # written aside and renamed, so a reader never sees half a picture
+        render(fsa, tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> None:

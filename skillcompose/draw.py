@@ -3,6 +3,8 @@
 The drawings follow the paper's figures 6, 9 and 11: one node per state labelled with its
 name and skill, the start state marked in red, edges labelled with outcomes, and the
 terminal outcomes as boxes. ``timeout`` is implicit (every state can time out) and not drawn.
+Pictures (SVG, PNG, PDF) come from Graphviz ``dot`` when it is installed, else from
+matplotlib with a layered layout of its own.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import Any
 from .errors import SkillcomposeError
 from .fsa import FSA
 
-__all__ = ["DrawingError", "render", "to_dot", "to_mermaid"]
+__all__ = ["DrawingError", "draw_matplotlib", "layers", "render", "to_dot", "to_mermaid"]
 
 
 class DrawingError(SkillcomposeError):
@@ -90,8 +92,14 @@ def to_mermaid(fsa: FSA) -> str:
     return "\n".join(lines) + "\n"
 
 
-def render(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
-    """Write a drawing; the format comes from the suffix: .dot, .mmd, .svg, .png, .pdf."""
+def render(
+    fsa: FSA, out: str | Path, *, params: bool = True, engine: str = "auto"
+) -> Path:
+    """Write a drawing; the format comes from the suffix: .dot, .mmd, .svg, .png, .pdf.
+
+    Pictures are laid out by Graphviz ``dot`` when it is installed (``engine="dot"``
+    insists on it), else drawn with matplotlib (``engine="matplotlib"``).
+    """
     out = Path(out)
     fmt = out.suffix.lower().lstrip(".")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -105,12 +113,17 @@ def render(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
         raise DrawingError(
             f"cannot draw to {out.name}: use a .dot, .mmd, .svg, .png or .pdf file name"
         )
+    if engine not in ("auto", "dot", "matplotlib"):
+        raise DrawingError(f"unknown drawing engine {engine!r}: auto, dot or matplotlib")
     dot = shutil.which("dot")
+    if engine == "matplotlib" or (engine == "auto" and dot is None):
+        draw_matplotlib(fsa, out, params=params)
+        return out
     if dot is None:
         raise DrawingError(
-            f"drawing {out.name} needs the Graphviz `dot` program, which is not installed; "
-            "install it (Debian/Ubuntu: `apt-get install graphviz`, macOS: `brew install "
-            "graphviz`), or write a .dot or .mmd file instead"
+            f"drawing {out.name} with Graphviz needs the `dot` program, which is not "
+            "installed; install it (Debian/Ubuntu: `apt-get install graphviz`, macOS: `brew "
+            "install graphviz`), or draw with matplotlib (engine='matplotlib')"
         )
     proc = subprocess.run(
         [dot, f"-T{fmt}", "-o", str(out)],
@@ -118,4 +131,99 @@ def render(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
     )
     if proc.returncode != 0:
         raise DrawingError(f"`dot` failed drawing {out.name}: {proc.stderr.strip()}")
+    return out
+
+
+def layers(fsa: FSA) -> dict[str, tuple[int, int]]:
+    """(column, row) of every state and terminal outcome for a left-to-right drawing:
+    the column is the breadth-first depth from the start; terminals take the last column;
+    states the start cannot reach come after the reachable ones."""
+    depth = {fsa.start: 0}
+    for s in fsa.reachable():
+        for t in fsa.successors(s):
+            depth.setdefault(t, depth[s] + 1)
+    last = max(depth.values(), default=0)
+    for s in fsa.states:
+        if s not in depth:
+            last += 1
+            depth[s] = last
+    end = max(depth.values(), default=0) + 1
+    pos: dict[str, tuple[int, int]] = {}
+    rows: dict[int, int] = defaultdict(int)
+    for s in sorted(fsa.states, key=lambda s: depth[s]):
+        pos[s] = (depth[s], rows[depth[s]])
+        rows[depth[s]] += 1
+    for k, t in enumerate(fsa.terminals):
+        pos[t] = (end, k)
+    return pos
+
+
+def draw_matplotlib(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
+    """A picture of the FSA without Graphviz: states in columns by their distance from the
+    start (in red), terminal outcomes (boxes) on the right, one arrow per target labelled
+    with its outcomes, self-loops as labels over the state."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import FancyArrowPatch
+
+    grid = layers(fsa)
+    ncols = max(c for c, _ in grid.values()) + 1
+    height = max((r for _, r in grid.values()), default=0) + 1
+    xy: dict[str, tuple[float, float]] = {}
+    col_size: dict[int, int] = defaultdict(int)
+    for c, _ in grid.values():
+        col_size[c] += 1
+    for name, (c, r) in grid.items():
+        xy[name] = (3.2 * c, (col_size[c] - 1) / 2.0 - r)  # columns centred vertically
+    fig = Figure(figsize=(max(6.0, 2.4 * ncols), max(3.5, 1.3 * height + 1.5)))
+    ax = fig.add_subplot()
+    boxes = {}
+    for sname, st in fsa.states.items():
+        text = sname if sname.startswith(st.skill) else f"{sname}\n({st.skill})"
+        if params and st.params:
+            text += "\n" + ", ".join(f"{k}={_fmt(v)}" for k, v in st.params.items())
+        colour = "tab:red" if sname == fsa.start else "tab:blue"
+        boxes[sname] = ax.annotate(
+            text, xy[sname], ha="center", va="center", fontsize=8, zorder=3,
+            bbox={"boxstyle": "round,pad=0.4", "fc": "white", "ec": colour,
+                  "lw": 2.0 if sname == fsa.start else 1.0},
+        )
+    used = {t for st in fsa.states.values() for t in st.transitions.values()}
+    for t in fsa.terminals:
+        if t in used:
+            boxes[t] = ax.annotate(t, xy[t], ha="center", va="center", fontsize=8, zorder=3,
+                                   bbox={"boxstyle": "square,pad=0.4", "fc": "#eef7ee",
+                                         "ec": "tab:green"})
+    for sname, st in fsa.states.items():
+        grouped: dict[str, list[str]] = defaultdict(list)
+        for outcome, target in st.transitions.items():
+            grouped[target].append(outcome)
+        for target, outs in grouped.items():
+            label = ", ".join(outs)
+            (x0, y0), (x1, y1) = xy[sname], xy[target]
+            if target == sname:
+                ax.annotate(f"↻ {label}", (x0, y0 + 0.42), ha="center", fontsize=7,
+                            color="dimgray")
+                continue
+            back = x1 <= x0  # edges going back or sideways bend more
+            rad = 0.35 if back else 0.12
+            ax.add_patch(FancyArrowPatch(
+                (x0, y0), (x1, y1), connectionstyle=f"arc3,rad={rad}", arrowstyle="-|>",
+                mutation_scale=10, color="gray", lw=1.0, shrinkA=28, shrinkB=28, zorder=1,
+            ))
+            mx, my = (x0 + x1) / 2, (y0 + y1) / 2
+            dx, dy = x1 - x0, y1 - y0  # the arc's bulge is to the right of the direction
+            ax.annotate(label, (mx + rad * dy / 2, my - rad * dx / 2), ha="center",
+                        va="center", fontsize=7, color="dimgray", zorder=2,
+                        bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
+                              "alpha": 0.8})
+    xs = [p[0] for p in xy.values()]
+    ys = [p[1] for p in xy.values()]
+    ax.set_xlim(min(xs) - 1.6, max(xs) + 1.6)
+    ax.set_ylim(min(ys) - 1.0, max(ys) + 1.0)
+    ax.axis("off")
+    ax.set_title(f"{fsa.name or 'FSA'}: start in red, terminal outcomes in green; "
+                 f"runs over {fsa.step_limit} steps end in timeout", fontsize=9)
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out, dpi=110)
     return out

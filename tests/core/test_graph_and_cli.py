@@ -44,11 +44,22 @@ def test_render_formats(tmp_path: Path) -> None:
     assert render(LOOPY, tmp_path / "a.mmd").read_text().startswith("stateDiagram-v2")
     with pytest.raises(DrawingError, match=r"use a \.dot, \.mmd"):
         render(LOOPY, tmp_path / "a.jpeg")
+    # without Graphviz, pictures come from matplotlib; with it, from dot
+    assert render(LOOPY, tmp_path / "a.svg").read_text().lstrip().startswith("<")
+    assert render(LOOPY, tmp_path / "a.png").read_bytes().startswith(b"\x89PNG")
+    assert render(LOOPY, tmp_path / "m.png", engine="matplotlib").stat().st_size > 1000
     if shutil.which("dot") is None:
         with pytest.raises(DrawingError, match="apt-get install graphviz"):
-            render(LOOPY, tmp_path / "a.svg")
-    else:
-        assert render(LOOPY, tmp_path / "a.svg").read_text().lstrip().startswith("<")
+            render(LOOPY, tmp_path / "b.svg", engine="dot")
+
+
+def test_layers_go_left_to_right() -> None:
+    from skillcompose.draw import layers
+
+    grid = layers(LOOPY)
+    assert grid["Count_1"] == (0, 0)
+    assert grid["Coin_2"][0] == 1 and grid["Spin_3"][0] == 2 and grid["Spin_4"][0] == 3
+    assert grid["success"][0] == grid["failure"][0] == 4
 
 
 def test_cli_run_validate_show_skills(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
