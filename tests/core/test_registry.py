@@ -108,3 +108,20 @@ def test_relabelling_a_backend_keeps_the_skill_kind() -> None:
     assert added.backend == "sim" and nested.backend == "default"
     parent = FSA({"C": State("Child", {}, {"success": "success", "failure": "failure"})}, "C")
     assert compile_fsa(parent, other, "sim").run(None, 0).outcome == "success"
+
+
+def test_entry_points_group(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Installed packages advertise skill modules in the `skillcompose.skills` group."""
+    from importlib import metadata
+
+    import skillcompose.registry as registry_module
+
+    ep = metadata.EntryPoint("demo", "tests.core.demo_skills", "skillcompose.skills")
+
+    def fake(group: str) -> list[metadata.EntryPoint]:
+        return [ep] if group == "skillcompose.skills" else []
+
+    monkeypatch.setattr(registry_module.metadata, "entry_points", fake)
+    reg = Registry()
+    added = reg.load_entry_points()
+    assert "MoveToObject" in reg and len(added) == len(reg)
