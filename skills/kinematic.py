@@ -87,7 +87,17 @@ from skills.kinematic_world import (
     top_down_grasp_world,
     transform_robot_to_world,
 )
-from skills.pour_water import APPROACH_OFFSET_M, APPROACH_TOLERANCE_M, WORKSPACE_WORLD
+from skills.pour_water import (
+    APPROACH_OFFSET_M,
+    APPROACH_TOLERANCE_M,
+    WORKSPACE_WORLD,
+    GripperX,
+    GripperY,
+    GripperZ,
+    Pitch,
+    Roll,
+    Yaw,
+)
 
 __all__ = [
     "BACKEND",
@@ -255,9 +265,9 @@ def move_gripper_to_param(
     bb: Blackboard,
     rng: np.random.Generator,
     *,
-    x: Annotated[float, Param(_X_M[0], _X_M[1], unit="m", doc="gripper x, world frame")] = 0.6,
-    y: Annotated[float, Param(_Y_M[0], _Y_M[1], unit="m", doc="gripper y, world frame")] = 0.0,
-    z: Annotated[float, Param(_Z_M[0], _Z_M[1], unit="m", doc="gripper z, world frame")] = 1.1,
+    x: GripperX = 0.6,
+    y: GripperY = 0.0,
+    z: GripperZ = 1.1,
 ) -> Literal["success", "failure"]:
     """Move the gripper, keeping its rotation, to ``(x, y, z)`` in world [m] by IK.
 
@@ -290,9 +300,9 @@ def rotate_gripper_to_param(
     bb: Blackboard,
     rng: np.random.Generator,
     *,
-    rho: Annotated[float, Param(-_PI, _PI, unit="rad", doc="roll about world x")] = 0.0,
-    phi: Annotated[float, Param(-_PI, _PI, unit="rad", doc="pitch about world y")] = 0.0,
-    theta: Annotated[float, Param(-_PI, _PI, unit="rad", doc="yaw about world z")] = 0.0,
+    rho: Roll = 0.0,
+    phi: Pitch = 0.0,
+    theta: Yaw = 0.0,
 ) -> Literal["success"]:
     """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad] by IK.
 

@@ -67,7 +67,13 @@ __all__ = [
     "POUR_TILT_MIN_RAD",
     "SKILLS",
     "WORKSPACE_WORLD",
+    "GripperX",
+    "GripperY",
+    "GripperZ",
+    "Pitch",
+    "Roll",
     "Vec3",
+    "Yaw",
     "check_success",
     "distance",
     "grasp_object",
@@ -102,6 +108,15 @@ The table top is at z = 0.75 m."""
 
 _X_M, _Y_M, _Z_M = WORKSPACE_WORLD
 _PI = math.pi
+
+# The parameter declarations of MoveGripperToParam and RotateGripperToParam, shared with
+# their twins on other backends (which must declare exactly the same ranges).
+GripperX = Annotated[float, Param(_X_M[0], _X_M[1], unit="m", doc="gripper x, world frame")]
+GripperY = Annotated[float, Param(_Y_M[0], _Y_M[1], unit="m", doc="gripper y, world frame")]
+GripperZ = Annotated[float, Param(_Z_M[0], _Z_M[1], unit="m", doc="gripper z, world frame")]
+Roll = Annotated[float, Param(-_PI, _PI, unit="rad", doc="roll about world x")]
+Pitch = Annotated[float, Param(-_PI, _PI, unit="rad", doc="pitch about world y")]
+Yaw = Annotated[float, Param(-_PI, _PI, unit="rad", doc="yaw about world z")]
 
 _WORLD_KEYS = ("jug_position_world", "glass_position_world", "gripper_position_world")
 
@@ -233,9 +248,9 @@ def move_gripper_to_param(
     bb: Blackboard,
     rng: np.random.Generator,
     *,
-    x: Annotated[float, Param(_X_M[0], _X_M[1], unit="m", doc="gripper x, world frame")] = 0.6,
-    y: Annotated[float, Param(_Y_M[0], _Y_M[1], unit="m", doc="gripper y, world frame")] = 0.0,
-    z: Annotated[float, Param(_Z_M[0], _Z_M[1], unit="m", doc="gripper z, world frame")] = 1.1,
+    x: GripperX = 0.6,
+    y: GripperY = 0.0,
+    z: GripperZ = 1.1,
 ) -> Literal["success", "failure"]:
     """Move the gripper to ``(x, y, z)`` in the world frame [m]; a held jug moves with it.
 
@@ -260,9 +275,9 @@ def rotate_gripper_to_param(
     bb: Blackboard,
     rng: np.random.Generator,
     *,
-    rho: Annotated[float, Param(-_PI, _PI, unit="rad", doc="roll about world x")] = 0.0,
-    phi: Annotated[float, Param(-_PI, _PI, unit="rad", doc="pitch about world y")] = 0.0,
-    theta: Annotated[float, Param(-_PI, _PI, unit="rad", doc="yaw about world z")] = 0.0,
+    rho: Roll = 0.0,
+    phi: Pitch = 0.0,
+    theta: Yaw = 0.0,
 ) -> Literal["success"]:
     """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad].
 
