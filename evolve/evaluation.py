@@ -13,10 +13,11 @@ import contextlib
 import math
 import multiprocessing
 import os
+import traceback
+from collections import deque
 from collections.abc import Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
-from typing import Any, NamedTuple, Protocol
+from multiprocessing.connection import Connection, wait
+from typing import Any, NamedTuple, Protocol, cast
 
 import numpy as np
 
@@ -126,13 +127,42 @@ def _chunks(jobs: Sequence[Job], n: int) -> list[list[Job]]:
     return [list(jobs[i:i + size]) for i in range(0, len(jobs), size)]
 
 
-class ProcessEvaluator:
-    """A local pool of worker processes, each holding the task built once.
+def _worker_main(conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...]) -> None:
+    """A worker process: build the task, say so, then evaluate chunks until told to stop."""
+    try:
+        _init_worker(source, terminals)
+    except BaseException:
+        conn.send(("failed", traceback.format_exc()))
+        return
+    conn.send(("ready", None))
+    while True:
+        try:
+            chunk = conn.recv()
+        except (EOFError, OSError):
+            return
+        if chunk is None:
+            return
+        conn.send(_run_chunk(chunk))
 
-    Jobs go out in ``workers * chunks_per_worker`` chunks per call to amortise the
-    inter-process traffic. A task loaded with :func:`~skillcompose.task.load_task` is rebuilt
-    in each worker from its module and settings; a task built in Python (no ``ref``) is
-    handed to forked workers as it is.
+
+class _Worker(NamedTuple):
+    process: Any
+    conn: Connection
+
+
+class ProcessEvaluator:
+    """A pool of worker processes, each holding the task built once.
+
+    Each worker has its own pipe; the parent hands out ``workers * chunks_per_worker``
+    chunks per call, the next one to whichever worker answers first, so traffic is one
+    message each way per chunk. A task loaded with :func:`~skillcompose.task.load_task` is
+    rebuilt in each worker from its module and settings; a task built in Python (no ``ref``)
+    is handed to forked workers as it is.
+
+    A worker that dies (a simulator that segfaults, ``os._exit``) is replaced, and the jobs
+    of its chunk are run again one by one in fresh workers: only a job that kills its worker
+    by itself scores the task's worst fitness, so results never depend on how jobs were
+    chunked or on how many workers there are. ``lost`` counts such jobs.
     """
 
     def __init__(
@@ -149,52 +179,106 @@ class ProcessEvaluator:
                 "load it with skillcompose.task.load_task(module, **settings) so worker "
                 "processes can rebuild it"
             )
-        self._ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+        self._ctx: Any = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
         self._source: TaskRef | Task = task.ref if task.ref is not None else task
-        self._pool: ProcessPoolExecutor | None = None
-        self.lost = 0  # evaluations lost to dead workers
+        self._pool: list[_Worker] = []
+        self.lost = 0  # jobs that killed their worker process
 
-    def _get_pool(self) -> ProcessPoolExecutor:
-        if self._pool is None:
-            self._pool = ProcessPoolExecutor(
-                max_workers=self.workers, mp_context=self._ctx,
-                initializer=_init_worker, initargs=(self._source, self.terminals),
+    def _spawn(self) -> _Worker:
+        parent, child = self._ctx.Pipe()
+        proc = self._ctx.Process(
+            target=_worker_main, args=(child, self._source, self.terminals), daemon=True
+        )
+        proc.start()
+        child.close()
+        try:
+            status, detail = parent.recv()
+        except (EOFError, OSError):
+            status, detail = "failed", f"the worker exited with code {proc.exitcode}"
+        if status != "ready":
+            proc.join(timeout=5)
+            raise EvolutionError(
+                f"an evaluation worker could not build task {self.task.name}:\n{detail}"
             )
+        return _Worker(proc, parent)
+
+    def _workers(self) -> list[_Worker]:
+        self._pool = [w for w in self._pool if w.process.is_alive()]
+        while len(self._pool) < self.workers:
+            self._pool.append(self._spawn())
         return self._pool
 
     def evaluate(self, jobs: Sequence[Job]) -> list[float]:
         if not jobs:
             return []
         chunks = _chunks(jobs, self.workers * self.chunks_per_worker)
-        pool = self._get_pool()
-        futures: list[Future[list[float]] | None] = []
+        starts = [0]
         for c in chunks:
-            try:
-                futures.append(pool.submit(_run_chunk, c))
-            except BrokenProcessPool:  # a worker died while we were still submitting
-                futures.append(None)
-        out: list[float] = []
-        broken = False
-        for chunk, fut in zip(chunks, futures, strict=True):
-            try:
-                if fut is None:
-                    raise BrokenProcessPool("the pool broke before this chunk was submitted")
-                out.extend(fut.result())
-            except BrokenProcessPool:
-                broken = True
-                self.lost += len(chunk)
-                out.extend([self.task.worst] * len(chunk))
-        if broken:  # a worker died: start a fresh pool for the next call
-            self.close()
+            starts.append(starts[-1] + len(c))
+        out: list[float] = [math.nan] * len(jobs)
+        # (position of the first job, jobs, run alone?) in the order they are handed out
+        todo: deque[tuple[int, list[Job], bool]] = deque(
+            (starts[k], c, False) for k, c in enumerate(chunks)
+        )
+        idle = deque(self._workers())
+        busy: dict[Connection, tuple[_Worker, tuple[int, list[Job], bool]]] = {}
+        while todo or busy:
+            while todo and idle:
+                worker = idle.popleft()
+                item = todo.popleft()
+                try:
+                    worker.conn.send(item[1])
+                except (BrokenPipeError, OSError):  # it died between two chunks
+                    todo.appendleft(item)
+                    self._discard(worker)
+                    idle.append(self._replace(worker))
+                    continue
+                busy[worker.conn] = (worker, item)
+            for ready in wait(list(busy)):
+                conn = cast(Connection, ready)
+                worker, (at, chunk, alone) = busy.pop(conn)
+                try:
+                    values = conn.recv()
+                except (EOFError, OSError):  # the worker died running this chunk
+                    self._discard(worker)
+                    idle.append(self._replace(worker))
+                    if alone:
+                        out[at] = self.task.worst
+                        self.lost += 1
+                    else:  # find the job that kills: run each one on its own
+                        todo.extendleft(
+                            (at + i, [job], True) for i, job in reversed(list(enumerate(chunk)))
+                        )
+                    continue
+                out[at:at + len(values)] = values
+                idle.append(worker)
         return out
 
+    def _replace(self, dead: _Worker) -> _Worker:
+        fresh = self._spawn()
+        self._pool = [fresh if w is dead else w for w in self._pool]
+        return fresh
+
+    @staticmethod
+    def _discard(worker: _Worker) -> None:
+        with contextlib.suppress(Exception):
+            worker.conn.close()
+        worker.process.join(timeout=5)
+
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
+        for w in self._pool:
+            with contextlib.suppress(Exception):
+                w.conn.send(None)
+        for w in self._pool:
+            w.process.join(timeout=5)
+            if w.process.is_alive():  # pragma: no cover - a worker stuck in a skill
+                w.process.terminate()
+                w.process.join(timeout=5)
+            with contextlib.suppress(Exception):
+                w.conn.close()
+        self._pool = []
 
 
-# -- Ray -----------------------------------------------------------------------------------
 class RayEvaluator:
     """Ray actors, each holding the task built once from its module and settings.
 

@@ -164,14 +164,18 @@ def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
     good = Genome({0: Node(s["FindBlock"], [], [-1])}, 0)
     bad = Genome({0: Node(s["Crash"], [], [-1])}, 0)
     jobs = [Job.of(g, 0, (1, 0, i), 1) for i, g in enumerate([good, good, bad, good])]
-    ev = ProcessEvaluator(task, skills, workers=2, chunks_per_worker=2)
-    try:
-        out = ev.evaluate(jobs)
-        assert out[2] == task.worst
-        assert ev.lost >= 1
-        assert ev.evaluate(jobs[:2]) == SerialEvaluator(task, skills).evaluate(jobs[:2])
-    finally:
-        ev.close()
+    serial = SerialEvaluator(task, skills)
+    for workers, per_worker in ((2, 2), (1, 1), (2, 1)):
+        ev = ProcessEvaluator(task, skills, workers=workers, chunks_per_worker=per_worker)
+        try:
+            out = ev.evaluate(jobs)
+            # only the job that kills its worker is lost; its chunk-mates are re-run alone
+            assert out[2] == task.worst and ev.lost == 1
+            good_jobs = [jobs[0], jobs[1], jobs[3]]
+            assert [out[0], out[1], out[3]] == serial.evaluate(good_jobs)
+            assert ev.evaluate(jobs[:2]) == serial.evaluate(jobs[:2])  # fresh workers serve
+        finally:
+            ev.close()
     # in one process the same skill raises: the evaluation scores worst, nothing propagates
     assert SerialEvaluator(task, skills).evaluate([jobs[2]]) == [task.worst]
     result = evolve(task, SMALL.replace(generations=2, population=20), seed=0, workers=2,
