@@ -16,9 +16,10 @@ The paper found redundant duplicate states in every evolved FSA (section 5). Aft
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
-from skillcompose import FSA, State, compile_fsa
+from skillcompose import FSA, compile_fsa
 from skillcompose.task import Task
 
 __all__ = ["merge_duplicates", "simplify"]
@@ -52,7 +53,9 @@ def merge_duplicates(fsa: FSA) -> FSA:
     if all(alias[s] == s for s in names):
         return fsa
     states = {
-        s: State(st.skill, st.params, {o: alias.get(t, t) for o, t in st.transitions.items()})
+        s: dataclasses.replace(
+            st, transitions={o: alias.get(t, t) for o, t in st.transitions.items()}
+        )
         for s, st in fsa.states.items() if alias[s] == s
     }
     return fsa.replace(states=states, start=alias[fsa.start]).pruned()
@@ -61,7 +64,7 @@ def merge_duplicates(fsa: FSA) -> FSA:
 def _remove(fsa: FSA, victim: str, target: str) -> FSA:
     """``fsa`` without ``victim``, its incoming edges (and the start) sent to ``target``."""
     states = {
-        s: State(st.skill, st.params, {
+        s: dataclasses.replace(st, transitions={
             o: (target if t == victim else t) for o, t in st.transitions.items()
         })
         for s, st in fsa.states.items() if s != victim

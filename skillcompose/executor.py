@@ -93,6 +93,7 @@ class CompiledFSA:
         "_key_types",
         "_start",
         "_table",
+        "_time_limits",
         "backend",
         "fsa",
         "names",
@@ -121,6 +122,9 @@ class CompiledFSA:
         self.terminals = fsa.terminals
         self._key_types = key_types
         self.backend = backend
+        self._time_limits = {
+            n: st.time_limit for n, st in fsa.states.items() if st.time_limit is not None
+        }
 
     # -- running ---------------------------------------------------------------------------
     def run(
@@ -140,6 +144,8 @@ class CompiledFSA:
             for k, t in self._key_types.items():
                 if bb._types.get(k) is not t:
                     bb.declare(k, t)
+        if self._time_limits:  # wall-clock limits need the tick-wise engine
+            return self.start(bb, rng, trace=trace, propagate=propagate).run()
         try:
             if trace:
                 return self._run_traced(bb, rng, propagate)
@@ -165,18 +171,22 @@ class CompiledFSA:
     ) -> FSARun:
         """Begin a tick-wise run: call ``.tick()`` on the result until it is not ``"running"``.
 
-        ``time_limits`` maps state names to wall-clock limits [s]; see
-        :class:`~skillcompose.ticking.FSARun`.
+        ``time_limits`` maps state names to wall-clock limits [s], over the states' own
+        ``time_limit``; see :class:`~skillcompose.ticking.FSARun`.
         """
         from .ticking import FSARun
 
+        limits = {**self._time_limits, **(time_limits or {})}  # the caller's win
         return FSARun(
-            self, bb, rng, trace=trace, propagate=propagate, time_limits=time_limits,
+            self, bb, rng, trace=trace, propagate=propagate, time_limits=limits,
             clock=clock,
         )
 
     def outcome(self, bb: Blackboard, rng: np.random.Generator) -> tuple[str, int]:
         """(outcome, steps) of one run, raising on skill errors: the evaluation hot path."""
+        if self._time_limits:
+            result = self.start(bb, rng, propagate=True).run()
+            return result.outcome, result.steps
         try:
             outcome, steps, _ = self._run_fast(bb, rng)
         except _Raised as r:

@@ -14,6 +14,7 @@ compiling and loading do for you.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -47,11 +48,16 @@ DEFAULT_STEP_LIMIT = 100
 
 @dataclass(frozen=True)
 class State:
-    """One state: a skill, its parameters (in the skill's units) and its transitions."""
+    """One state: a skill, its parameters (in the skill's units) and its transitions.
+
+    ``time_limit`` [s], when set, bounds the state's wall-clock time (for hardware skills that
+    can hang): a state that overruns ends with ``timeout`` (see :mod:`skillcompose.ticking`).
+    """
 
     skill: str
     params: Mapping[str, Any] = field(default_factory=dict)
     transitions: Mapping[str, str] = field(default_factory=dict)
+    time_limit: float | None = None
 
 
 @dataclass(frozen=True)
@@ -165,6 +171,16 @@ class FSA:
                     f"a state cannot be named {sname!r}: that is a terminal outcome",
                     state=sname, fix="rename the state", at=("states", sname),
                 ))
+            limit = st.time_limit
+            if limit is not None and (
+                isinstance(limit, bool) or not isinstance(limit, (int, float))
+                or not math.isfinite(limit) or limit <= 0
+            ):
+                out.append(self._problem(
+                    f"time_limit must be a positive number of seconds, got {limit!r}",
+                    state=sname, key="time_limit", fix="for example `time_limit: 2.0`",
+                    at=("states", sname, "time_limit"),
+                ))
             for outcome, target in st.transitions.items():
                 if target not in self.states and target not in self.terminals:
                     out.append(self._problem(
@@ -260,12 +276,12 @@ class FSA:
 
     def with_params(self, state: str, **params: Any) -> FSA:
         st = self._state(state)
-        new = State(st.skill, {**st.params, **params}, st.transitions)
+        new = dataclasses.replace(st, params={**st.params, **params})
         return self.replace(states={**self.states, state: new})
 
     def route(self, state: str, outcome: str, target: str) -> FSA:
         st = self._state(state)
-        new = State(st.skill, st.params, {**st.transitions, outcome: target})
+        new = dataclasses.replace(st, transitions={**st.transitions, outcome: target})
         return self.replace(states={**self.states, state: new})
 
     def with_state(self, name: str, state: State) -> FSA:
@@ -283,7 +299,7 @@ class FSA:
         states: dict[str, State] = {}
         for k, st in self.states.items():
             tr = {o: (new if t == old else t) for o, t in st.transitions.items()}
-            states[new if k == old else k] = State(st.skill, st.params, tr)
+            states[new if k == old else k] = dataclasses.replace(st, transitions=tr)
         source = self.source
         if source is not None:
             renames = {k: (new if v == old else v) for k, v in source.renames.items()}

@@ -63,7 +63,7 @@ __all__ = [
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "start", "step_limit", "terminals", "states", "meta")
 REQUIRED_TOP_LEVEL = ("format", "start", "states")
-STATE_KEYS = ("skill", "params", "transitions")
+STATE_KEYS = ("skill", "params", "transitions", "time_limit")
 REQUIRED_STATE_KEYS = ("skill", "transitions")
 
 _STD = "tag:yaml.org,2002:"
@@ -330,7 +330,8 @@ class _Reader:
 
     def read_state(self, sname: str, node: Node) -> State | None:
         fields = self.mapping(node, f"state {sname}", STATE_KEYS, state=sname,
-                              fix="a state has `skill:`, `params:` and `transitions:`")
+                              fix="a state has `skill:`, `params:`, `transitions:` and "
+                              "`time_limit:`")
         if fields is None:
             return None
         ok = True
@@ -381,7 +382,20 @@ class _Reader:
                     ok = False
                     continue
                 transitions[outcome] = target
-        return State(skill, params, transitions) if ok else None
+        time_limit: float | None = None
+        if "time_limit" in fields:
+            tnode = fields["time_limit"][1]
+            self.mark(("states", sname, "time_limit"), tnode)
+            value = self.scalar(tnode)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                    not math.isfinite(value) or value <= 0:
+                self.fail(tnode, f"time_limit must be a positive number of seconds, got "
+                          f"{value!r}", state=sname, key="time_limit",
+                          fix="for example `time_limit: 2.0`")
+                ok = False
+            else:
+                time_limit = float(value)
+        return State(skill, params, transitions, time_limit) if ok else None
 
 
 def _node_kind(node: Node) -> str:
@@ -481,6 +495,9 @@ def _state_map(st: State, registry: Registry | None) -> CommentedMap:
     for o, t in st.transitions.items():
         tm[o] = t
     m["transitions"] = tm
+    if st.time_limit is not None:
+        m["time_limit"] = st.time_limit
+        m.yaml_add_eol_comment("s: a longer state ends with `timeout`", "time_limit")
     return m
 
 
@@ -612,6 +629,10 @@ def _sync_document(
             tm = CommentedMap()
             cur["transitions"] = tm
         _sync_map(tm, st.transitions)
+        if st.time_limit is not None:
+            _set(cur, "time_limit", st.time_limit)
+        elif "time_limit" in cur:
+            del cur["time_limit"]
     if fsa.meta or "meta" in doc:
         if not isinstance(doc.get("meta"), CommentedMap):
             doc["meta"] = CommentedMap()

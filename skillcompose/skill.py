@@ -423,15 +423,25 @@ def _annotations(func: Any) -> dict[str, Any]:
         return typing.get_type_hints(func, include_extras=True)
     except Exception:  # e.g. `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
         pass
+    try:  # only parameters after `*` and the return type matter to a skill
+        sig = inspect.signature(func)
+        needed = {n for n, p in sig.parameters.items() if p.kind is p.KEYWORD_ONLY}
+    except (TypeError, ValueError):
+        needed = set(raw)
+    needed.add("return")
     out: dict[str, Any] = {}
     for k, v in raw.items():
         if isinstance(v, str):
             try:
                 v = eval(v, dict(globalns), {})
             except Exception as exc:
+                if k not in needed:  # e.g. `bb: Blackboard` imported inside a function
+                    continue
                 raise SkillDefinitionError(
                     f"{getattr(func, '__qualname__', func)}: cannot evaluate the annotation "
-                    f"of {k!r} ({v!r}): {exc}"
+                    f"of {k!r} ({v!r}): {exc}; with `from __future__ import annotations`, "
+                    "names in parameter and return annotations must be importable at module "
+                    "level"
                 ) from exc
         out[k] = v
     return out

@@ -4,14 +4,18 @@ import json
 import math
 import re
 import textwrap
+import time
 from pathlib import Path
+from typing import Literal
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from skillcompose import (
     FSA,
+    Blackboard,
     FSAFileError,
     FSAValidationError,
     Registry,
@@ -21,6 +25,7 @@ from skillcompose import (
     load_fsa,
     loads_fsa,
     save_fsa,
+    skill,
 )
 from skillcompose.fsafile import STATE_KEYS, TOP_LEVEL_KEYS
 
@@ -224,3 +229,31 @@ def test_schema_accepts_what_we_write(registry: Registry) -> None:
     doc["states"]["Move_2"]["colour"] = "red"
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(doc, schema)
+
+
+def test_time_limit_in_a_file_stops_a_hanging_state(tmp_path: Path) -> None:
+    @skill
+    def hang(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+        time.sleep(3.0)  # a driver that never answers in time
+        return "success"
+
+    registry = Registry([hang])
+    text = textwrap.dedent(
+        """\
+        format: 1
+        start: Hang
+        states:
+          Hang:
+            skill: Hang
+            time_limit: 0.2   # s
+            transitions: {success: success}
+        """
+    )
+    fsa = loads_fsa(text, "hang.yaml")
+    assert fsa.states["Hang"].time_limit == 0.2
+    assert loads_fsa(dumps_fsa(fsa.with_params("Hang"))) == fsa  # survives a save
+    t0 = time.perf_counter()
+    result = compile_fsa(fsa, registry).run(None, 0)
+    assert result.outcome == "timeout" and time.perf_counter() - t0 < 2.0
+    with pytest.raises(FSAFileError, match=r"hang\.yaml:6:17: state Hang: time_limit must"):
+        loads_fsa(text.replace("0.2", "-1"), "hang.yaml")

@@ -106,3 +106,14 @@ def test_unit_interval_mapping_round_trips() -> None:
 
     spec = make_param_spec("k", float, log, 1.0, "S")
     assert spec.from_unit(0.5) == pytest.approx(np.sqrt(0.01 * 10.0))
+
+
+def test_local_names_in_the_bb_annotation_are_tolerated() -> None:
+    from skillcompose import Blackboard as LocalBlackboard
+
+    @skill
+    def local(bb: LocalBlackboard, rng: np.random.Generator) -> Literal["success"]:
+        return "success"
+
+    assert local.spec.outcomes == ("success",)
+    assert local(LocalBlackboard(), 0) == "success"
