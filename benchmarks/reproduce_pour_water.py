@@ -43,11 +43,13 @@ PAPER = EvolutionConfig()  # table 1: N=300, p_mut=0.1, p_cross=0.1, p_add=0.2, 
 """The paper's settings; one episode per evaluation (task default trials=1)."""
 
 OURS = EvolutionConfig(**PRESETS["robust"])
-"""Our best options (``skillcompose evolve --preset robust``): 3 episodes per evaluation that
-a whole generation shares (common random numbers), the two best kept, tournaments of 3,
-initial FSAs of 12 nodes and parameter noise of 0.1. A run counts as solved only when its
-best FSA pours in every shared world, which selects FSAs that retry their failing skills:
-robust solutions rather than one lucky episode. Chosen by a small search on seeds 0-5."""
+"""Our best options (``skillcompose evolve --preset robust``): 600 individuals, 3 episodes
+per evaluation that a whole generation shares (common random numbers), the two best kept,
+tournaments of 3, initial FSAs of 12 nodes, parameter noise 0.1, and a solution confirmed on
+20 fresh episodes before a run stops. A run counts as solved only when its best FSA pours
+in every shared world and in the fresh ones, which selects FSAs that retry their failing
+skills: robust solutions rather than one lucky episode. Chosen by a small search on seeds
+0-7 (without confirmation: median solved rate 0.79 at p_fail 0.2; with it: 0.99)."""
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ __all__ = ["EvolutionResult", "GenerationRecord", "evolve"]
 _PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 _BREED = 0
 _EVAL = 1
+_CONFIRM = 2
 
 
 @dataclass(frozen=True)
@@ -278,6 +279,20 @@ class _Run:
                 self.rundir.write_best(self.best_fsa(), self.task.registry, self.header())
         return rec
 
+    def confirm(self) -> bool:
+        """Re-run the best genome on ``confirm_trials`` fresh worlds; it stays the best (and
+        the task solved) only if it reaches the target there too, else its fitness becomes
+        that measured mean and evolution goes on."""
+        assert self.best is not None
+        g, _, gen = self.best
+        seq = np.random.SeedSequence(self.seed, spawn_key=(_CONFIRM, self.generation))
+        mean = self.task.evaluate(self.compiler.compile(g), seq, self.cfg.confirm_trials)
+        self.evaluations += self.cfg.confirm_trials
+        if self.task.solved(mean):
+            return True
+        self.best = (g, mean, gen)
+        return False
+
     # -- export ----------------------------------------------------------------------------
     def best_fsa(self, simplified: dict[str, Any] | None = None) -> FSA:
         assert self.best is not None
@@ -431,6 +446,8 @@ def evolve(
                 on_generation(rec)
             assert run.best is not None
             solved = task.solved(run.best[1])
+            if solved and cfg.confirm_trials:
+                solved = run.confirm()
             if solved or run.generation >= cfg.generations:
                 break
             run.breed(fitness)

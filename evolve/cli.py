@@ -40,8 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--initial-nodes", type=int, help="initial nodes S (default 50, table 1)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
                    help="starting settings: paper (table 1, the default) or robust (our best "
-                   "options: 3 shared trials, elitism 2, tournament 3, S=12, sigma 0.1); "
-                   "the flags below override it")
+                   "options: N=600, 3 shared trials, elitism 2, tournament 3, S=12, sigma "
+                   "0.1, solutions confirmed on 20 fresh trials); the flags below override it")
     p.add_argument("--tournament", type=int, help="tournament size (default 2)")
     p.add_argument("--param-sigma", type=float,
                    help="standard deviation of parameter noise in [0, 1] units (default 0.05)")
@@ -63,6 +63,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cache-refresh", type=int,
                    help="with --cache, fresh trials added each time a genome reappears")
     p.add_argument("--parsimony", action="store_true", help="fewer states wins at equal fitness")
+    p.add_argument("--confirm", type=int, dest="confirm_trials",
+                   help="fresh trials that must confirm a solution before the run stops")
     p.add_argument("--checkpoint-every", type=int, help="generations between checkpoints (10)")
     p.add_argument("--no-simplify", action="store_true",
                    help="export the best FSA as evolved, without simplification")
@@ -77,6 +79,7 @@ def _config(args: argparse.Namespace) -> EvolutionConfig:
         ("generations", "generations"), ("population", "population"),
         ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
         ("tournament", "tournament"), ("param_sigma", "param_sigma"),
+        ("confirm_trials", "confirm_trials"),
         ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
     ):
         v = getattr(args, opt)

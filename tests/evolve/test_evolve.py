@@ -207,3 +207,24 @@ def test_initial_population_uses_the_paper_defaults(toy_skills: SkillSet) -> Non
         300, 0.1, 0.1, 0.2, 0.01, 50)
     sizes = [len(initialize(toy_skills, np.random.default_rng(i), 50)) for i in range(50)]
     assert min(sizes) >= 1 and max(sizes) <= 50 and len(set(sizes)) > 5  # pruned, varied
+
+
+@pytest.mark.slow
+def test_confirmation_rejects_lucky_solutions() -> None:
+    """With one noisy trial per evaluation the first 'solution' is often luck; with
+    confirm_trials the run stops only on an FSA that also solves fresh worlds."""
+    task = load_task("examples.pour_water", p_fail=0.3)
+    base = EvolutionConfig(population=300, initial_nodes=12, generations=400, trials=1,
+                           tournament=3, param_sigma=0.1, elitism=2)
+    lucky = evolve(task, base, seed=1, simplify_result=False)
+    confirmed = evolve(task, base.replace(confirm_trials=25), seed=1, simplify_result=False)
+    assert lucky.solved and confirmed.solved
+
+    def solved_rate(fsa: object) -> float:
+        compiled = compile_fsa(fsa, task.registry, task.backend)  # type: ignore[arg-type]
+        scores = [f for _, f in task.run_trials(compiled, 999, 300)]
+        return sum(map(task.solved, scores)) / len(scores)
+
+    assert confirmed.generations >= lucky.generations
+    assert solved_rate(confirmed.best_fsa) >= 0.9
+    assert solved_rate(confirmed.best_fsa) > solved_rate(lucky.best_fsa)
