@@ -163,14 +163,13 @@ def draw_fsa(fsa: FSA, path: str | os.PathLike[str]) -> None:
 
 
 def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> None:
-    """Best, mean and median fitness per generation."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Best, mean and median fitness per generation (matplotlib's object API: no pyplot
+    state, no backend switch)."""
+    from matplotlib.figure import Figure
 
     gens = [r["generation"] for r in history]
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
     for key in ("best", "median", "mean"):
         ax.plot(gens, [r[key] for r in history], label=key)
     ax.set_xlabel("generation")
@@ -179,7 +178,6 @@ def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[s
     ax.grid(alpha=0.3)
     fig.tight_layout()
     _save_fig(fig, Path(path))
-    plt.close(fig)
 
 
 def _save_fig(fig: Any, path: Path) -> None:
