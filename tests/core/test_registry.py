@@ -125,3 +125,30 @@ def test_entry_points_group(monkeypatch: pytest.MonkeyPatch) -> None:
     reg = Registry()
     added = reg.load_entry_points()
     assert "MoveToObject" in reg and len(added) == len(reg)
+
+
+def test_backend_swap_on_one_file_from_the_command_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One FSA file, two backends picked at run time: the paper's sim-to-real point."""
+    from skillcompose import save_fsa
+    from skillcompose.cli import main
+
+    module = tmp_path / "detect_skills.py"
+    module.write_text(
+        "from typing import Literal\n"
+        "from skillcompose import skill\n"
+        "@skill(name='Detect', backend='sim', writes=('seen',))\n"
+        "def detect_sim(bb, rng) -> Literal['success', 'failure']:\n"
+        "    return 'success'\n"
+        "@skill(name='Detect', backend='kinematic', writes=('seen',))\n"
+        "def detect_kin(bb, rng) -> Literal['success', 'failure']:\n"
+        "    return 'failure'\n"
+    )
+    fsa = FSA({"D": State("Detect", {}, {"success": "success", "failure": "failure"})}, "D")
+    path = save_fsa(fsa, tmp_path / "detect.fsa.yaml").path
+    assert path is not None
+    for backend, expected in (("sim", "success"), ("kinematic", "failure")):
+        assert main(["run", path, "--skills", str(module), "--backend", backend]) == 0
+        out = capsys.readouterr().out
+        assert f"backend {backend}" in out and f"  {expected} " in out
