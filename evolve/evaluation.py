@@ -127,8 +127,13 @@ def _chunks(jobs: Sequence[Job], n: int) -> list[list[Job]]:
     return [list(jobs[i:i + size]) for i in range(0, len(jobs), size)]
 
 
-def _worker_main(conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...]) -> None:
+def _worker_main(
+    conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...], cpu: int | None
+) -> None:
     """A worker process: build the task, say so, then evaluate chunks until told to stop."""
+    if cpu is not None:  # one worker per core: measured 1.2x -> 1.4x on 2 cores
+        with contextlib.suppress(OSError, AttributeError):
+            os.sched_setaffinity(0, {cpu})
     try:
         _init_worker(source, terminals)
     except BaseException:
@@ -153,11 +158,12 @@ class _Worker(NamedTuple):
 class ProcessEvaluator:
     """A pool of worker processes, each holding the task built once.
 
-    Each worker has its own pipe; the parent hands out ``workers * chunks_per_worker``
-    chunks per call, the next one to whichever worker answers first, so traffic is one
-    message each way per chunk. A task loaded with :func:`~skillcompose.task.load_task` is
-    rebuilt in each worker from its module and settings; a task built in Python (no ``ref``)
-    is handed to forked workers as it is.
+    Each worker has its own pipe and, where the platform allows, its own core (round robin
+    over the cores this process may use); the parent hands out ``workers *
+    chunks_per_worker`` chunks per call, the next one to whichever worker answers first, so
+    traffic is one message each way per chunk. A task loaded with
+    :func:`~skillcompose.task.load_task` is rebuilt in each worker from its module and
+    settings; a task built in Python (no ``ref``) is handed to forked workers as it is.
 
     A worker that dies (a simulator that segfaults, ``os._exit``) is replaced, and the jobs
     of its chunk are run again one by one in fresh workers: only a job that kills its worker
@@ -183,11 +189,18 @@ class ProcessEvaluator:
         self._source: TaskRef | Task = task.ref if task.ref is not None else task
         self._pool: list[_Worker] = []
         self.lost = 0  # jobs that killed their worker process
+        try:
+            self._cpus: list[int] = sorted(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - platforms without CPU affinity
+            self._cpus = []
+        self._spawned = 0
 
     def _spawn(self) -> _Worker:
         parent, child = self._ctx.Pipe()
+        cpu = self._cpus[self._spawned % len(self._cpus)] if self._cpus else None
+        self._spawned += 1
         proc = self._ctx.Process(
-            target=_worker_main, args=(child, self._source, self.terminals), daemon=True
+            target=_worker_main, args=(child, self._source, self.terminals, cpu), daemon=True
         )
         proc.start()
         child.close()
