@@ -127,6 +127,20 @@ def _chunks(jobs: Sequence[Job], n: int) -> list[list[Job]]:
     return [list(jobs[i:i + size]) for i in range(0, len(jobs), size)]
 
 
+def _guided_chunks(jobs: Sequence[Job], workers: int) -> list[list[Job]]:
+    """Chunks that shrink as the work runs out (guided scheduling): each takes half of an
+    even share of what is left, down to a small floor, so workers start with large chunks
+    (few messages) and finish together (no worker waits long on another's last chunk)."""
+    floor = max(1, len(jobs) // (16 * max(1, workers)))
+    out: list[list[Job]] = []
+    i = 0
+    while i < len(jobs):
+        size = max(floor, math.ceil((len(jobs) - i) / (2 * max(1, workers))))
+        out.append(list(jobs[i:i + size]))
+        i += size
+    return out
+
+
 def _worker_main(
     conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...], cpu: int | None
 ) -> None:
@@ -159,9 +173,9 @@ class ProcessEvaluator:
     """A pool of worker processes, each holding the task built once.
 
     Each worker has its own pipe and, where the platform allows, its own core (round robin
-    over the cores this process may use); the parent hands out ``workers *
-    chunks_per_worker`` chunks per call, the next one to whichever worker answers first, so
-    traffic is one message each way per chunk. A task loaded with
+    over the cores this process may use); the parent hands out chunks that shrink as the work
+    runs out (guided scheduling), the next one to whichever worker answers first, so traffic
+    is one message each way per chunk and the workers finish together. A task loaded with
     :func:`~skillcompose.task.load_task` is rebuilt in each worker from its module and
     settings; a task built in Python (no ``ref``) is handed to forked workers as it is.
 
@@ -224,7 +238,7 @@ class ProcessEvaluator:
     def evaluate(self, jobs: Sequence[Job]) -> list[float]:
         if not jobs:
             return []
-        chunks = _chunks(jobs, self.workers * self.chunks_per_worker)
+        chunks = _guided_chunks(jobs, self.workers)
         starts = [0]
         for c in chunks:
             starts.append(starts[-1] + len(c))
