@@ -176,9 +176,8 @@ class CompiledFSA:
         """
         from .ticking import FSARun
 
-        limits = {**self._time_limits, **(time_limits or {})}  # the caller's win
         return FSARun(
-            self, bb, rng, trace=trace, propagate=propagate, time_limits=limits,
+            self, bb, rng, trace=trace, propagate=propagate, time_limits=time_limits,
             clock=clock,
         )
 

@@ -365,7 +365,8 @@ class FSARun:
         self.compiled = compiled
         self.bb = bb
         self.rng = rng
-        self._table = _tick_table(compiled, time_limits)
+        limits = {**compiled._time_limits, **(time_limits or {})}  # the caller's win
+        self._table = _tick_table(compiled, limits)
         self._clock = clock or time.monotonic
         self._propagate = propagate
         self._i = compiled._start

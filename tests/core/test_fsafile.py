@@ -252,8 +252,13 @@ def test_time_limit_in_a_file_stops_a_hanging_state(tmp_path: Path) -> None:
     fsa = loads_fsa(text, "hang.yaml")
     assert fsa.states["Hang"].time_limit == 0.2
     assert loads_fsa(dumps_fsa(fsa.with_params("Hang"))) == fsa  # survives a save
+    compiled = compile_fsa(fsa, registry)
     t0 = time.perf_counter()
-    result = compile_fsa(fsa, registry).run(None, 0)
+    result = compiled.run(None, 0)
     assert result.outcome == "timeout" and time.perf_counter() - t0 < 2.0
+    from skillcompose import run_ticking
+
+    t0 = time.perf_counter()  # every tick-wise entry point honours the file's limit too
+    assert run_ticking(compiled).outcome == "timeout" and time.perf_counter() - t0 < 2.0
     with pytest.raises(FSAFileError, match=r"hang\.yaml:6:17: state Hang: time_limit must"):
         loads_fsa(text.replace("0.2", "-1"), "hang.yaml")
