@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from robots.base_placement import BasePlacer
-from robots.collision import Box, Scene, check_collisions
+from robots.base_placement import BasePlacer, random_table_scene
+from robots.collision import Scene, check_collisions
 from robots.ik import IKSolver, IKTarget
 from robots.model import FloatArray, KinematicChain, RobotModel, find_pr2_urdf, load_pr2
 from robots.optimisation import ConstrainedIK, OptimisedBasePlacer
@@ -181,21 +181,6 @@ def bench_unreachable(model: RobotModel, n: int) -> None:
     )
 
 
-def _table_scene(rng: np.random.Generator) -> tuple[Scene, IKTarget]:
-    w, d, h = rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.0), rng.uniform(0.6, 0.85)
-    cx, cy, yaw = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi)
-    u, v = -w / 2 + rng.uniform(0.05, 0.3), rng.uniform(-d / 2 + 0.1, d / 2 - 0.1)
-    c, s = np.cos(yaw), np.sin(yaw)
-    position = np.array([cx + c * u - s * v, cy + s * u + c * v, h + 0.1])
-    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    # a second object beside the target, as an obstacle
-    ou, ov = u + 0.15, v + rng.choice([-1, 1]) * rng.uniform(0.15, 0.3)
-    obstacle = Box(
-        (cx + c * ou - s * ov, cy + s * ou + c * ov, h + 0.1), (0.04, 0.04, 0.1), yaw, "box"
-    )
-    return Scene((Box.table((cx, cy), (w, d), h, yaw), obstacle)), IKTarget(position, rotation)
-
-
 def bench_base_placement(model: RobotModel, n: int, n_ipopt: int) -> None:
     _header(f"Base placement, object on a random table edge + an obstacle box ({n} scenes per arm)")
     for arm in ("left", "right"):
@@ -203,7 +188,7 @@ def bench_base_placement(model: RobotModel, n: int, n_ipopt: int) -> None:
         placer = BasePlacer(model=model, arm=arm, seed=0, time_budget_s=0.2)
         optimiser = OptimisedBasePlacer(model=model, arm=arm, seed=0, n_boxes=2)
         rng = np.random.default_rng(2024)
-        scenes = [_table_scene(rng) for _ in range(n)]
+        scenes = [random_table_scene(rng, obstacle=True) for _ in range(n)]
         oks, times = [], []
         for scene, target in scenes:
             result = placer.place(target, scene)

@@ -200,4 +200,26 @@ def place_base(
     return placer.place(target, scene)
 
 
-__all__ = ["BASE_JOINT", "BasePlacementResult", "BasePlacer", "place_base"]
+__all__ = ["BASE_JOINT", "BasePlacementResult", "BasePlacer", "place_base", "random_table_scene"]
+
+
+def random_table_scene(
+    rng: np.random.Generator, *, obstacle: bool = False
+) -> tuple[Scene, IKTarget]:
+    """A random table (0.6-1.2 m by 0.6-1.0 m, top 0.6-0.85 m high, anywhere within 1 m of
+    the world origin, any yaw) and a grasp target 10 cm above it near one long edge, gripper
+    along the table's x axis [m, rad]; with ``obstacle``, a 4 x 4 x 10 cm box beside the
+    target. For tests and benchmarks of base placement."""
+    w, d, h = rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.0), rng.uniform(0.6, 0.85)
+    cx, cy, yaw = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi)
+    u, v = -w / 2 + rng.uniform(0.05, 0.3), rng.uniform(-d / 2 + 0.1, d / 2 - 0.1)
+    c, s = np.cos(yaw), np.sin(yaw)
+    position = np.array([cx + c * u - s * v, cy + s * u + c * v, h + 0.1])
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    boxes = [Box.table((cx, cy), (w, d), h, yaw)]
+    if obstacle:  # a second object beside the target
+        ou, ov = u + 0.15, v + rng.choice([-1, 1]) * rng.uniform(0.15, 0.3)
+        boxes.append(Box(
+            (cx + c * ou - s * ov, cy + s * ou + c * ov, h + 0.1), (0.04, 0.04, 0.1), yaw, "box"
+        ))
+    return Scene(tuple(boxes)), IKTarget(position, rotation)

@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robots.base_placement import BasePlacer
+from robots.base_placement import BasePlacer, random_table_scene
 from robots.collision import Box, Scene, check_collisions
 from robots.ik import IKStatus, IKTarget
 from robots.model import RobotModel
@@ -39,23 +39,13 @@ def test_arm_through_table_collides(pr2: RobotModel) -> None:
     assert ("robot_base", "table") in check_collisions(chain, theta, against_base).pairs
 
 
-def _table_scene(rng: np.random.Generator) -> tuple[Scene, IKTarget]:
-    w, d, h = rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.0), rng.uniform(0.6, 0.85)
-    cx, cy, yaw = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi)
-    u, v = -w / 2 + rng.uniform(0.05, 0.3), rng.uniform(-d / 2 + 0.1, d / 2 - 0.1)
-    c, s = np.cos(yaw), np.sin(yaw)
-    position = np.array([cx + c * u - s * v, cy + s * u + c * v, h + 0.1])
-    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return Scene((Box.table((cx, cy), (w, d), h, yaw),)), IKTarget(position, rotation)
-
-
 @pytest.mark.parametrize("arm", ["left", "right"])
 def test_base_placement_reaches_without_collision(pr2: RobotModel, arm: str) -> None:
     placer = BasePlacer(model=pr2, arm=arm, seed=3, time_budget_s=0.5)  # type: ignore[arg-type]
     chain = pr2.chain(f"{arm}_arm_torso_base")
     rng = np.random.default_rng(7)
     for _ in range(15):
-        scene, target = _table_scene(rng)
+        scene, target = random_table_scene(rng)
         result = placer.place(target, scene)
         assert result.success, result
         pose = result.pose(pr2)
@@ -80,7 +70,7 @@ def test_optimised_base_placement_with_collision_margin(pr2: RobotModel) -> None
     rng = np.random.default_rng(1)
     successes = 0
     for _ in range(5):
-        scene, target = _table_scene(rng)
+        scene, target = random_table_scene(rng)
         result = placer.place(target, scene)
         if result.success:
             successes += 1
