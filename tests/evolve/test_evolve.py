@@ -183,6 +183,56 @@ def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
     assert result.generations == 2
 
 
+def test_the_pool_survives_many_deaths_in_one_batch() -> None:
+    """Killers spread over a large batch (and a batch of nothing but killers): every worker
+    that dies is replaced while the batch runs, what it finished is kept, and only the
+    killers score worst, on 1 and 2 workers; a worker killed from outside between two
+    batches, and a batch interrupted half-way, cost nothing either."""
+    task = load_task("tests.evolve.crashy_task", p_fail=0.0)
+    skills = SkillSet.from_task(task)
+    s = skills.index
+    from evolve import Node
+
+    rng = np.random.default_rng(5)
+    killers = {3, 4, 17, 40, 41, 42, 77, 98}
+    genomes = [Genome({0: Node(s["Crash"], [], [-1])}, 0) if i in killers
+               else initialize(skills, rng, 6) for i in range(100)]
+    jobs = [Job.of(g, 0, (1, 0, i), 2) for i, g in enumerate(genomes)]
+    expected = SerialEvaluator(task, skills).evaluate(jobs)
+    # in this process Crash raises; the random genomes that reach it kill a worker too
+    killers = {i for i, e in enumerate(expected) if e == task.worst}
+    assert {3, 4, 17, 40, 41, 42, 77, 98} < killers < set(range(100))
+    for workers in (1, 2):
+        ev = ProcessEvaluator(task, skills, workers=workers)
+        try:
+            assert ev.evaluate(jobs) == expected and ev.lost == len(killers)
+            assert ev.evaluate([jobs[i] for i in sorted(killers)]) == [task.worst] * len(killers)
+            assert ev.lost == 2 * len(killers)
+            os.kill(ev._pool[0].process.pid, signal.SIGKILL)
+            ev._pool[0].process.join(timeout=5)
+            good = [j for i, j in enumerate(jobs) if i not in killers]
+            assert ev.evaluate(good) == [e for i, e in enumerate(expected) if i not in killers]
+            assert ev.lost == 2 * len(killers)
+
+            import evolve.evaluation as evaluation
+
+            real_wait = evaluation.wait
+
+            def interrupted(*args: object, **kwargs: object) -> object:
+                raise KeyboardInterrupt
+
+            evaluation.wait = interrupted  # type: ignore[assignment]
+            try:
+                with pytest.raises(KeyboardInterrupt):
+                    ev.evaluate(good)
+            finally:
+                evaluation.wait = real_wait
+            assert ev.evaluate(good[:30]) == [e for i, e in enumerate(expected)
+                                              if i not in killers][:30]
+        finally:
+            ev.close()
+
+
 def test_seed_fsa_enters_the_first_population() -> None:
     task = load_task("examples.toy_task", p_fail=0.0, trials=2)
     path = ROOT / "tests" / "evolve" / "data" / "toy_solution.yaml"
