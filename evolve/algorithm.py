@@ -20,7 +20,7 @@ import os
 import statistics
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -161,38 +161,47 @@ class _Run:
         return (f, size if self.cfg.parsimony else 0)
 
     # -- one generation --------------------------------------------------------------------
-    def evaluate(self) -> tuple[list[float], int]:
-        """Fitness of every individual of this generation; episodes run."""
-        cfg, g = self.cfg, self.generation
-        n = len(self.population)
-        fitness: list[float | None] = [None] * n
+    def evaluate(self, bred: Iterator[Genome] | None = None) -> tuple[list[float], int]:
+        """Fitness of every individual of this generation; episodes run. ``bred`` is the
+        next generation as :meth:`breed` makes it: each child is handed to the evaluator as
+        soon as it is born, so a pool evaluates while the rest are bred."""
+        cfg = self.cfg
+        g = self.generation + 1 if bred is not None else self.generation
+        fitness: list[float | None] = []
         jobs: list[Job] = []
         slots: list[list[int]] = []
         by_key: dict[tuple[Any, ...], int] = {}
-        keys: list[tuple[Any, ...] | None] = [None] * n
-        for i, ind in enumerate(self.population):
-            uid = ind.origin.get("uid")
-            if uid in self.elite_fitness and cfg.cache and cfg.cache_refresh == 0:
-                fitness[i] = self.elite_fitness[uid]
-                continue
-            spawn = (_EVAL, g) if cfg.common_random_numbers else (_EVAL, g, i)
-            trials = self.trials
-            if cfg.cache:
-                k = ind.key()
-                keys[i] = k
-                if k in by_key:  # the same genome twice in this generation
-                    slots[by_key[k]].append(i)
+        keys: list[tuple[Any, ...] | None] = []
+
+        def new_jobs() -> Iterator[Job]:
+            for i, ind in enumerate(bred if bred is not None else self.population):
+                fitness.append(None)
+                keys.append(None)
+                uid = ind.origin.get("uid")
+                if uid in self.elite_fitness and cfg.cache and cfg.cache_refresh == 0:
+                    fitness[i] = self.elite_fitness[uid]
                     continue
-                if k in self.cache:
-                    if cfg.cache_refresh == 0:
-                        total, count = self.cache[k]
-                        fitness[i] = total / count
+                spawn = (_EVAL, g) if cfg.common_random_numbers else (_EVAL, g, i)
+                trials = self.trials
+                if cfg.cache:
+                    k = ind.key()
+                    keys[i] = k
+                    if k in by_key:  # the same genome twice in this generation
+                        slots[by_key[k]].append(i)
                         continue
-                    trials = cfg.cache_refresh
-                by_key[k] = len(jobs)
-            jobs.append(Job.of(ind, self.seed, spawn, trials))
-            slots.append([i])
-        results = self.evaluator.evaluate(jobs) if jobs else []
+                    if k in self.cache:
+                        if cfg.cache_refresh == 0:
+                            total, count = self.cache[k]
+                            fitness[i] = total / count
+                            continue
+                        trials = cfg.cache_refresh
+                    by_key[k] = len(jobs)
+                jobs.append(Job.of(ind, self.seed, spawn, trials))
+                slots.append([i])
+                yield jobs[-1]
+
+        results = self.evaluator.evaluate(new_jobs(), expected=cfg.population)
+        assert self.generation == g and len(fitness) == len(self.population)
         episodes = sum(j.trials for j in jobs)
         for job, idx, f in zip(jobs, slots, results, strict=True):
             f = _nan_safe(float(f), self.task.minimize)
@@ -210,7 +219,11 @@ class _Run:
                 fitness[i] = f
         return [float(f) for f in fitness if f is not None], episodes
 
-    def breed(self, fitness: list[float]) -> None:
+    def breed(
+        self, fitness: list[float], bred: Callable[[], None] | None = None
+    ) -> Iterator[Genome]:
+        """Algorithm 1's next generation, child by child; once all are born it becomes the
+        population and ``bred`` is called (to save a checkpoint)."""
         cfg, rng, n = self.cfg, self.rng, len(self.population)
         sizes = [len(g) for g in self.population]
         order = sorted(range(n), key=lambda i: (*self.rank_key(fitness[i], sizes[i]), i))
@@ -224,6 +237,7 @@ class _Run:
             e.origin = {**e.origin, "elite": True}
             self.elite_fitness[e.origin["uid"]] = fitness[i]
             nxt.append(e)
+            yield e
 
         def pick() -> Genome:
             cands = rng.integers(n, size=cfg.tournament)
@@ -247,8 +261,11 @@ class _Run:
                     parents.append(mate.origin["uid"])
                 c.origin = {"uid": self.uid(), "born": g, "parents": parents, "ops": ops}
                 nxt.append(c)
+            yield from nxt[len(nxt) - 2:cfg.population]
         self.population = nxt[:cfg.population]
         self.generation = g
+        if bred is not None:
+            bred()
 
     def record(self, fitness: list[float], episodes: int, gen_time: float) -> GenerationRecord:
         sizes = [len(g) for g in self.population]
@@ -437,9 +454,19 @@ def evolve(
                 run.population.append(g)
         solved = run.best is not None and task.solved(run.best[1])
         last_plot = time.perf_counter()
+
+        def bred() -> None:  # runs as the last child is born, while the pool evaluates
+            nonlocal last_plot
+            if rundir is not None and run.generation % cfg.checkpoint_every == 0:
+                rundir.save_checkpoint(run.state())
+                if time.perf_counter() - last_plot > _PLOT_EVERY_S:  # drawing is slow
+                    rundir.plots([r.to_dict() for r in run.history], run.best_fsa())
+                    last_plot = time.perf_counter()
+
+        children: Iterator[Genome] | None = None
         while not solved and run.generation <= cfg.generations:
             t = time.perf_counter()
-            fitness, episodes = run.evaluate()
+            fitness, episodes = run.evaluate(children)
             rec = run.record(fitness, episodes, time.perf_counter() - t)
             run.show_progress(rec)
             if on_generation is not None:
@@ -450,12 +477,7 @@ def evolve(
                 solved = run.confirm()
             if solved or run.generation >= cfg.generations:
                 break
-            run.breed(fitness)
-            if rundir is not None and run.generation % cfg.checkpoint_every == 0:
-                rundir.save_checkpoint(run.state())
-                if time.perf_counter() - last_plot > _PLOT_EVERY_S:  # drawing is slow
-                    rundir.plots([r.to_dict() for r in run.history], run.best_fsa())
-                    last_plot = time.perf_counter()
+            children = run.breed(fitness, bred)
     finally:
         evaluator.close()
         if stream is not None:

@@ -208,6 +208,10 @@ def test_the_pool_survives_many_deaths_in_one_batch() -> None:
             assert ev.evaluate(jobs) == expected and ev.lost == len(killers)
             assert ev.evaluate([jobs[i] for i in sorted(killers)]) == [task.worst] * len(killers)
             assert ev.lost == 2 * len(killers)
+            # the same jobs streamed from a generator, as a generation is while it is bred
+            assert ev.evaluate((j for j in jobs), expected=len(jobs)) == expected
+            assert ev.lost == 3 * len(killers)
+            ev.lost = 2 * len(killers)
             os.kill(ev._pool[0].process.pid, signal.SIGKILL)
             ev._pool[0].process.join(timeout=5)
             good = [j for i, j in enumerate(jobs) if i not in killers]
@@ -231,6 +235,24 @@ def test_the_pool_survives_many_deaths_in_one_batch() -> None:
                                               if i not in killers][:30]
         finally:
             ev.close()
+
+
+def test_a_stream_longer_than_the_shared_memory_is_evaluated_whole() -> None:
+    """A generator of unknown length outgrows the pool's shared results (1024 to start):
+    the pool grows it between batches and keeps what it had."""
+    task = load_task("examples.toy_task", p_fail=0.2)
+    skills = SkillSet.from_task(task)
+    rng = np.random.default_rng(11)
+    genomes = [initialize(skills, rng, 4) for _ in range(60)]
+    jobs = [Job.of(genomes[i % 60], 0, (1, 0, i), 1) for i in range(2600)]
+    expected = SerialEvaluator(task, skills).evaluate(jobs)
+    ev = ProcessEvaluator(task, skills, workers=2)
+    try:
+        assert ev.evaluate(j for j in jobs) == expected
+        assert len(ev._results) >= len(jobs)  # it grew twice, from 1024
+        assert ev.evaluate(jobs[:10]) == expected[:10]
+    finally:
+        ev.close()
 
 
 def test_seed_fsa_enters_the_first_population() -> None:
