@@ -4,11 +4,12 @@
     python benchmarks/bench_evolve.py --quick              # a short run for CI
     python benchmarks/bench_evolve.py --task examples.toy_task --set p_fail=0.2
 
-Prints (1) a table of evaluations (episodes) per second of the evaluation phase for the
-serial backend and for 2 worker processes on the same generations (the runs are identical,
-so the work is the same), best of ``--repeats`` interleaved runs, with their ratio, next to
-the speed-up this machine gives a plain CPU-bound loop split over 2 processes (the ceiling
-any pool can reach here); (2) over 10 seeds, generations and wall time to solve.
+Prints (1) evaluations (episodes) per second of one generation's jobs, serially and on 2
+worker processes (the same jobs, so the same work and the same fitnesses), best of
+``--repeats`` back-to-back pairs, next to what this machine gives a CPU-bound loop run by 2
+processes at once over one alone (the ceiling any pool can reach here, measured after each
+pair); (2) whole runs of 25 generations, breeding and checkpoints included, serial vs the
+pool (identical runs); (3) over 10 seeds, generations and wall time to solve.
 """
 
 from __future__ import annotations
@@ -24,7 +25,6 @@ import numpy as np
 from evolve import (
     PRESETS,
     EvolutionConfig,
-    EvolutionResult,
     Job,
     ProcessEvaluator,
     SerialEvaluator,
@@ -33,15 +33,6 @@ from evolve import (
     initialize,
 )
 from skillcompose.task import load_task, parse_settings
-
-
-def eval_rate(result: EvolutionResult, skip_first: bool = False) -> float:
-    """Episodes per second of the evaluation phase (generation 0, with the pool's start-up,
-    left out when ``skip_first``)."""
-    hist = result.history[1:] if skip_first and len(result.history) > 1 else result.history
-    episodes = sum(r.evaluations for r in hist)
-    seconds = sum(r.evaluations / r.evals_per_s for r in hist if r.evals_per_s > 0)
-    return episodes / seconds if seconds > 0 else 0.0
 
 
 def _count_until(cpu: int | None, start: float, stop: float, out: Any) -> None:
@@ -156,7 +147,35 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.throughput_only:
         return 0
-    # 2. time to solve, over seeds, with the paper's settings and with our robust preset
+
+    # 2. whole runs: what a user waits for, breeding and checkpoints included (the pool
+    # evaluates each child as it is born, so breeding overlaps evaluation)
+    whole_gens = 5 if quick else 25
+    runs = 2 if quick else 5
+    print(f"Whole runs, {whole_gens} generations from seed 1000 (no simplification), "
+          f"best of {runs} interleaved runs each\n")
+    print(f"{'preset':8} {'population x trials':>19} {'serial s':>9} "
+          f"{f'pool ({args.workers}) s':>10} {'speed-up':>9}")
+    for name in ("paper", "robust"):
+        cfg = EvolutionConfig(**{**PRESETS[name], "generations": whole_gens})
+        whole_walls: dict[str, list[float]] = {"serial": [], "process": []}
+        histories: dict[str, list[tuple[float, ...]]] = {}
+        for _ in range(runs):
+            for backend in ("serial", "process"):
+                t = time.perf_counter()
+                r = evolve(task, cfg, seed=1000, backend=backend,
+                           workers=1 if backend == "serial" else args.workers,
+                           simplify_result=False)
+                whole_walls[backend].append(time.perf_counter() - t)
+                histories[backend] = [(h.best, h.mean, h.total_evaluations) for h in r.history]
+        if histories["serial"] != histories["process"]:
+            raise SystemExit(f"preset {name}: the pool's run differs from the serial one")
+        s, p = min(whole_walls["serial"]), min(whole_walls["process"])
+        shape = f"{cfg.population} x {cfg.trials or task.trials}"
+        print(f"{name:8} {shape:>19} {s:9.2f} {p:10.2f} {s / p:8.2f}x")
+    print()
+
+    # 3. time to solve, over seeds, with the paper's settings and with our robust preset
     seeds = 3 if quick else args.seeds
     budget = 150 if quick else 2000
     print(f"Time to solve, {seeds} seeds (budget {budget} generations, serial)\n")
