@@ -12,6 +12,7 @@ Wired into ``skillcompose`` by :func:`register_cli`; ``main(argv)`` runs it on i
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Any
 
@@ -50,7 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="evaluation workers (default: all cores for process/ray)")
     p.add_argument("--backend", choices=BACKENDS, default=None,
                    help="where to evaluate: serial, a local process pool, or Ray "
-                   "(default: process when --workers > 1, else serial)")
+                   "(default: a process pool on all cores, serial on one core or with "
+                   "--workers 1)")
     p.add_argument("--out", help="run directory: best FSA, drawing, history, plot, checkpoints")
     p.add_argument("--resume", metavar="DIR", help="continue the run in DIR from its checkpoint")
     p.add_argument("--seed-fsa", metavar="FILE",
@@ -116,7 +118,8 @@ def handle(args: argparse.Namespace) -> int:
                 )
             task = load_task(args.task, **parse_settings(args.settings))
             cfg = _config(args)
-            backend = args.backend or ("process" if (args.workers or 1) > 1 else "serial")
+            cores = args.workers or os.cpu_count() or 1
+            backend = args.backend or ("process" if cores > 1 else "serial")
             workers = args.workers
         result = evolve(
             task, cfg, seed=args.seed, workers=workers, backend=backend,
