@@ -136,14 +136,7 @@ class CompiledFSA:
         propagate: bool = False,
     ) -> RunResult:
         """Run once. ``rng`` is a Generator or a seed; ``propagate`` re-raises skill errors."""
-        if bb is None:
-            bb = Blackboard()
-        if not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
-        if self._key_types:
-            for k, t in self._key_types.items():
-                if bb._types.get(k) is not t:
-                    bb.declare(k, t)
+        bb, rng = self._prepare(bb, rng)
         if self._time_limits:  # wall-clock limits need the tick-wise engine
             return self.start(bb, rng, trace=trace, propagate=propagate).run()
         try:
@@ -158,6 +151,20 @@ class CompiledFSA:
             return RunResult(ERROR, r.steps, self.names[r.state_index], error=exc)
         finally:
             bb._client = None
+
+    def _prepare(
+        self, bb: Blackboard | None, rng: np.random.Generator | int | None
+    ) -> tuple[Blackboard, np.random.Generator]:
+        """The blackboard and generator a run uses (new ones when not given), with the FSA's
+        typed keys declared on the blackboard."""
+        if bb is None:
+            bb = Blackboard()
+        if not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(rng)
+        for k, t in self._key_types.items():
+            if bb._types.get(k) is not t:
+                bb.declare(k, t)
+        return bb, rng
 
     def start(
         self,

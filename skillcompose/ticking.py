@@ -355,13 +355,7 @@ class FSARun:
         time_limits: Mapping[str, float] | None = None,
         clock: Callable[[], float] | None = None,
     ) -> None:
-        if bb is None:
-            bb = Blackboard()
-        if not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
-        for k, t in compiled._key_types.items():
-            if bb._types.get(k) is not t:
-                bb.declare(k, t)
+        bb, rng = compiled._prepare(bb, rng)
         self.compiled = compiled
         self.bb = bb
         self.rng = rng
