@@ -17,6 +17,7 @@ import pickle
 import traceback
 from collections.abc import Iterable, Iterator, Sequence
 from multiprocessing.connection import Connection, wait
+from multiprocessing.reduction import ForkingPickler
 from typing import Any, NamedTuple, Protocol, cast
 
 import numpy as np
@@ -339,7 +340,8 @@ class ProcessEvaluator:
         self._batch += 1
         with self._counter.get_lock():
             self._counter.value = 0
-        sent: list[Any] = [("batch", self._batch)]  # for a worker that joins half-way
+        # each message pickled once for all workers, and kept for one that joins half-way
+        sent: list[memoryview] = [ForkingPickler.dumps(("batch", self._batch))]
         active: dict[Connection, _Worker] = {}
         spans: list[tuple[int, int]] = []
         try:
@@ -369,18 +371,19 @@ class ProcessEvaluator:
         return [p for at, n in spans for p in range(at, at + n) if math.isnan(results[p])]
 
     def _broadcast(
-        self, message: Any, sent: list[Any], active: dict[Connection, _Worker]
+        self, message: Any, sent: list[memoryview], active: dict[Connection, _Worker]
     ) -> None:
         """Send ``message`` to every worker of the batch; one that has died is replaced by a
         fresh one that gets the whole batch so far."""
-        sent.append(message)
+        data = ForkingPickler.dumps(message)
+        sent.append(data)
         for conn, worker in list(active.items()):
-            if not self._send(worker, message):
+            if not self._send(worker, data):
                 del active[conn]
                 fresh = self._join(self._replace(worker), sent)
                 active[fresh.conn] = fresh
 
-    def _join(self, worker: _Worker, sent: list[Any]) -> _Worker:
+    def _join(self, worker: _Worker, sent: list[memoryview]) -> _Worker:
         """Have ``worker`` (or a fresh one, if it dies) join the running batch: send it every
         message of the batch so far."""
         while not all(self._send(worker, m) for m in sent):
@@ -388,9 +391,9 @@ class ProcessEvaluator:
         return worker
 
     @staticmethod
-    def _send(worker: _Worker, message: Any) -> bool:
+    def _send(worker: _Worker, data: memoryview) -> bool:
         try:
-            worker.conn.send(message)
+            worker.conn.send_bytes(data)
             return True
         except (BrokenPipeError, OSError):
             return False
