@@ -56,7 +56,7 @@ __all__ = [
     "register",
 ]
 
-SAFETY_M = 0.15
+SAFETY_M = 0.05
 """MoveBase keeps its base footprint this far from the table [m], as the robot's navigation
 did (the paper: most failures on the robot came from its "safety constraints")."""
 BASE_STEP_M = 2.5
@@ -92,7 +92,7 @@ def network_inputs(object_robot: Sequence[float], torso_m: float) -> np.ndarray:
 
 
 def base_goal(
-    outputs: Sequence[float], base_pose_world: Sequence[float]
+    outputs: Sequence[float] | np.ndarray, base_pose_world: Sequence[float]
 ) -> BaseGoal:
     """Where the five network outputs send the robot (see the module's docstring)."""
     x, y, yaw = (float(v) for v in base_pose_world)
