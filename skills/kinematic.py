@@ -590,13 +590,14 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
 _WHICH = Annotated[float, Param(0.0, 1.0, doc="> 0.5: the first object, else the second")]
 
 
-@skill(name="GraspParam", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
+@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped"),
+       writes=(*_MOVE_WRITES, "objects_grasped"), backend=BACKEND)
 def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
     """Grasp the first (``which`` > 0.5) or second stacking object from above, by IK with
     the arm on its side (then the other). ``failure``: ``no_object``, ``already_holding``
-    or the IK reason."""
+    or the IK reason. Appends the object to ``objects_grasped``."""
     name = stack_object_name(bb, which)
     if name is None:
         return fail(bb, "no_object", "GraspParam: object_positions_world needs two objects")
@@ -614,6 +615,7 @@ def grasp_param(
     held[answer.arm] = name
     commit(bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                           answer.state.q_arm_rad, held, answer.arm))
+    bb["objects_grasped"] = (*(bb.get("objects_grasped") or ()), name)
     return "success"
 
 
