@@ -162,10 +162,7 @@ def reach_target(bb: Blackboard) -> tuple[str, Vec3] | None:
     if len(names) < 2:
         return None
     holding = held(bb)
-    if holding is None:
-        name = names[0]
-    else:
-        name = names[1] if holding[1] == names[0] else names[0]
+    name = names[0] if holding is None or holding[1] != names[0] else names[1]
     return str(name), _vec3(positions[name])
 
 

@@ -16,19 +16,19 @@ from skills.kinematic_world import (
     DETAIL_KEY,
     REASON_KEY,
     ROBOT_READS,
+    WORLD_READS,
     fail,
-    read_state,
     reach,
+    read_state,
     scene_world,
     top_down_grasp_world,
 )
-from skills.stacking import HELD_KEYS, held, object_boxes, reach_target
+from skills.stacking import held, object_boxes, reach_target
 
 __all__ = ["reach_check"]
 
 
-@skill(name="Push", reads=(*ROBOT_READS, "object_positions_world", "object_half_extents_m",
-                           *HELD_KEYS.values()),
+@skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS),
        writes=(REASON_KEY, DETAIL_KEY), backend="kinematic")
 def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """MoveToReach's Push on the PR2 model, moving nothing: ``success`` when IK puts the tool
