@@ -141,7 +141,8 @@ def test_resume_in_process_equals_an_uninterrupted_run(tmp_path: Path) -> None:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        evolve(task, cfg, seed=2, out_dir=tmp_path / "b", on_generation=stop_after_7)
+        evolve(task, cfg, seed=2, out_dir=tmp_path / "b", on_generation=stop_after_7,
+               simplify_trials=30)
     assert stopped == [7]
     resumed = evolve(task, resume=tmp_path / "b", simplify_trials=30)
     _same_run(full, resumed)
