@@ -420,11 +420,11 @@ class _Run:
             "`--seed-fsa FILE`."
         )
 
-    def show_progress(self, rec: GenerationRecord) -> None:
+    def show_progress(self, rec: GenerationRecord, final: bool = False) -> None:
         """What is known: generations done (of the budget), their rate, the best fitness and
         size, evaluations/s. No time to the end: a run stops when it solves the task, which
         nobody can foresee (the budget only bounds it)."""
-        if self.progress is None:
+        if self.progress is None or (final and self._last_line == rec.wall_time):
             return
         from tqdm import tqdm
 
@@ -435,14 +435,15 @@ class _Run:
         if getattr(self.progress, "isatty", lambda: False)():
             if self._bar is None:
                 self._bar = tqdm(
-                    total=None, initial=done - 1, unit="gen", file=self.progress,
-                    dynamic_ncols=True, leave=True,
+                    total=None, initial=done, unit="gen", file=self.progress,
+                    dynamic_ncols=True, leave=True, desc=desc, postfix=postfix,
                     bar_format="{desc}: {elapsed}, {rate_fmt}{postfix}",
                 )
-            self._bar.set_description_str(desc, refresh=False)
-            self._bar.set_postfix_str(postfix, refresh=False)
-            self._bar.update(1)
-        elif rec.wall_time - self._last_line >= 5.0:  # a log: a line every 5 s at most
+            else:
+                self._bar.set_description_str(desc, refresh=False)
+                self._bar.set_postfix_str(postfix, refresh=False)
+                self._bar.update(1)
+        elif rec.wall_time - self._last_line >= 5.0 or final:  # a log: a line per 5 s
             self._last_line = rec.wall_time
             rate = done / rec.wall_time if rec.wall_time > 0 else 0.0
             line = tqdm.format_meter(
@@ -453,6 +454,8 @@ class _Run:
             self.progress.flush()
 
     def close_progress(self) -> None:
+        if self._bar is None and self.history:  # a log ends with the last generation
+            self.show_progress(self.history[-1], final=True)
         if self._bar is not None:
             self._bar.close()
             self._bar = None
