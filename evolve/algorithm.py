@@ -365,7 +365,8 @@ class _Run:
         if self.rundir is not None:
             self.rundir.append_history(rec.to_dict())
             if improved:
-                self.rundir.write_best(self.best_fsa(), self.task.registry, self.header())
+                self.rundir.write_best(self.named(self.best_fsa()), self.task.registry,
+                                       self.header())
         return rec
 
     def confirm(self) -> bool:

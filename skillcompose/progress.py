@@ -24,7 +24,7 @@ def progress_bar(total: int, unit: str, desc: str = "", file: TextIO | None = No
     manager and call ``update(n)``."""
     stream = file if file is not None else sys.stderr
     return tqdm(
-        total=total, unit=unit, desc=desc or None, file=stream, delay=SHOW_AFTER_S, mininterval=REDRAW_S,
-        disable=not getattr(stream, "isatty", lambda: False)(), leave=False,
-        dynamic_ncols=True,
+        total=total, unit=unit, desc=desc or None, file=stream, delay=SHOW_AFTER_S,
+        mininterval=REDRAW_S, disable=not getattr(stream, "isatty", lambda: False)(),
+        leave=False, dynamic_ncols=True,
     )

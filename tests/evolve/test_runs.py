@@ -19,7 +19,7 @@ import pytest
 from evolve import CheckpointError, EvolutionConfig, EvolutionResult, RunDir, evolve
 from skillcompose import load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
-from skillcompose.task import load_task
+from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
 TOY = ["examples.toy_task", "--set", "p_fail=0.3", "--set", "tolerance=0.002"]
@@ -28,7 +28,7 @@ SMALL = ["--population", "30", "--initial-nodes", "8", "--seed", "4", "--quiet",
 CFG = EvolutionConfig(population=30, initial_nodes=8, generations=4, checkpoint_every=3)
 
 
-def _task() -> object:
+def _task() -> Task:
     return load_task("examples.toy_task", p_fail=0.3, tolerance=0.002)
 
 
@@ -71,11 +71,11 @@ def test_resume_of_a_finished_run_changes_nothing(
 # -- 2: extending a run ----------------------------------------------------------------------
 def test_extending_a_run_equals_an_uninterrupted_run(tmp_path: Path) -> None:
     task = _task()
-    full = evolve(task, CFG.replace(generations=8), seed=4, out_dir=tmp_path / "full",  # type: ignore[arg-type]
+    full = evolve(task, CFG.replace(generations=8), seed=4, out_dir=tmp_path / "full",
                   simplify_trials=20)
-    short = evolve(task, CFG, seed=4, out_dir=tmp_path / "short", simplify_trials=20)  # type: ignore[arg-type]
+    short = evolve(task, CFG, seed=4, out_dir=tmp_path / "short", simplify_trials=20)
     assert short.generations == 4 and not short.solved
-    extended = evolve(task, CFG.replace(generations=8), resume=tmp_path / "short")  # type: ignore[arg-type]
+    extended = evolve(task, CFG.replace(generations=8), resume=tmp_path / "short")
     _same(full, extended)
     assert _history(tmp_path / "short") == _history(tmp_path / "full")  # no duplicates
     a, b = load_fsa(tmp_path / "full" / "best.yaml"), load_fsa(tmp_path / "short" / "best.yaml")
@@ -84,7 +84,7 @@ def test_extending_a_run_equals_an_uninterrupted_run(tmp_path: Path) -> None:
     assert skillcompose_main(["evolve", "--resume", str(tmp_path / "short"), "--quiet",
                               "--generations", "10", "--backend", "process",
                               "--workers", "2"]) == 0
-    ten = evolve(task, CFG.replace(generations=10), seed=4, simplify_trials=20)  # type: ignore[arg-type]
+    ten = evolve(task, CFG.replace(generations=10), seed=4, simplify_trials=20)
     assert _history(tmp_path / "short") == [
         (r.generation, r.best, r.mean, r.median, r.best_size, r.total_evaluations)
         for r in ten.history]
@@ -110,10 +110,10 @@ def test_resume_refuses_settings_that_change_the_run(
     assert skillcompose_main(["evolve", "--resume", str(d), "--population", "30", "--seed", "4",
                               "--quiet"]) == 0
     assert _files(d) == before
-    with pytest.raises(CheckpointError, match="population 31 .the run has 30"):
-        evolve(_task(), CFG.replace(population=31), resume=d)  # type: ignore[arg-type]
-    with pytest.raises(CheckpointError, match="simplify_trials 7 .the run has 20"):
-        evolve(_task(), resume=d, simplify_trials=7)  # type: ignore[arg-type]
+    with pytest.raises(CheckpointError, match=r"population 31 \(the run has 30\)"):
+        evolve(_task(), CFG.replace(population=31), resume=d)
+    with pytest.raises(CheckpointError, match=r"simplify_trials 7 \(the run has 20\)"):
+        evolve(_task(), resume=d, simplify_trials=7)
 
 
 # -- 19: killed during the final writes, simplification settings, lock, temporary files ----
@@ -121,7 +121,7 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     task = _task()
-    full = evolve(task, CFG, seed=4, out_dir=tmp_path / "full", simplify_trials=20)  # type: ignore[arg-type]
+    full = evolve(task, CFG, seed=4, out_dir=tmp_path / "full", simplify_trials=20)
     import evolve.algorithm as algorithm
 
     def killed(*args: object, **kwargs: object) -> object:
@@ -129,10 +129,10 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
 
     monkeypatch.setattr(algorithm, "simplify", killed)
     with pytest.raises(KeyboardInterrupt):
-        evolve(task, CFG, seed=4, out_dir=tmp_path / "b", simplify_trials=20)  # type: ignore[arg-type]
+        evolve(task, CFG, seed=4, out_dir=tmp_path / "b", simplify_trials=20)
     monkeypatch.undo()
     (tmp_path / "b" / ".best.yaml.tmp-x1y2z3").write_text("half a file")  # left by a kill
-    resumed = evolve(task, resume=tmp_path / "b")  # type: ignore[arg-type]
+    resumed = evolve(task, resume=tmp_path / "b")
     _same(full, resumed)
     assert _history(tmp_path / "b") == _history(tmp_path / "full")
     assert not list((tmp_path / "b").glob(".*.tmp-*"))
@@ -149,7 +149,7 @@ def test_no_simplify_is_part_of_the_run(tmp_path: Path, capsys: pytest.CaptureFi
         def stop(rec: object) -> None:
             if getattr(rec, "generation", 0) == 3:
                 raise KeyboardInterrupt
-        evolve(task, CFG.replace(checkpoint_every=2), seed=4, out_dir=b,  # type: ignore[arg-type]
+        evolve(task, CFG.replace(checkpoint_every=2), seed=4, out_dir=b,
                simplify_result=False, simplify_trials=20, on_generation=stop)
     assert json.loads(rd.run_json.read_text())["simplify"] is False
     assert skillcompose_main(["evolve", "--resume", str(b), "--quiet"]) == 0
@@ -233,7 +233,7 @@ def test_no_worker_survives_a_kill_9_of_the_evolving_process(tmp_path: Path) -> 
 def test_outputs_honour_the_umask_and_keep_an_existing_mode(tmp_path: Path) -> None:
     old = os.umask(0o022)
     try:
-        evolve(_task(), CFG.replace(generations=1), seed=4, out_dir=tmp_path / "run",  # type: ignore[arg-type]
+        evolve(_task(), CFG.replace(generations=1), seed=4, out_dir=tmp_path / "run",
                simplify_trials=20)
         for p in (tmp_path / "run").iterdir():
             if p.name != ".lock":
@@ -329,7 +329,7 @@ class _Terminal(io.StringIO):
 
 def test_progress_says_what_is_known_and_no_eta() -> None:
     for stream in (io.StringIO(), _Terminal()):
-        evolve(_task(), CFG.replace(generations=3), seed=4, progress=stream,  # type: ignore[arg-type]
+        evolve(_task(), CFG.replace(generations=3), seed=4, progress=stream,
                simplify_result=False)
         text = stream.getvalue()
         assert "gen 3/3" in text and "gen/s" in text and "best 0." in text, text
