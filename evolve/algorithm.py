@@ -430,8 +430,9 @@ class _Run:
         from tqdm import tqdm
 
         done = len(self.history)
-        postfix = (f"best {rec.best:.4g}, size {rec.best_size}, "
-                   f"{rec.evals_per_s:,.0f} evals/s")
+        so_far = self.best[1] if self.best is not None else rec.best
+        postfix = (f"best {so_far:.4g} (this generation {rec.best:.4g}, size "
+                   f"{rec.best_size}), {rec.evals_per_s:,.0f} evals/s")
         desc = f"gen {rec.generation}/{self.cfg.generations}"
         if getattr(self.progress, "isatty", lambda: False)():
             if self._bar is None:

@@ -124,15 +124,15 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
     cfg = record["config"]
     problems: list[str] = []
 
-    def differs(option: str, value: Any, recorded: Any) -> None:
+    def differs(option: str, value: Any, recorded: Any, sep: str = " ") -> None:
         if normalise(value) != normalise(recorded):
-            problems.append(f"{option} {value} (the run has {recorded})")
+            problems.append(f"{option}{sep}{value} (the run has {recorded})")
 
     if args.task:
         differs("TASK", args.task, record["task_module"])
     if args.settings:
         for k, v in parse_settings(args.settings).items():
-            differs(f"--set {k}=", v, record["task_settings"].get(k, "no such setting"))
+            differs(f"--set {k}", v, record["task_settings"].get(k, "no such setting"), "=")
     if args.seed is not None:
         differs("--seed", args.seed, record["seed"])
     if args.seed_fsa is not None:
@@ -140,8 +140,8 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
     if args.preset is not None:
         for name, value in PRESETS[args.preset].items():
             differs(f"--preset {args.preset}: {name} =", value, cfg.get(name))
-    if args.no_simplify:
-        differs("--no-simplify", True, not record["simplify"])
+    if args.no_simplify and record["simplify"]:
+        problems.append("--no-simplify (the run simplifies its result)")
     if args.simplify_trials is not None:
         differs("--simplify-trials", args.simplify_trials, record["simplify_trials"])
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():

@@ -104,7 +104,7 @@ def test_resume_refuses_settings_that_change_the_run(
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     for named in ("--population 50 (the run has 30)", "--seed 3 (the run has 4)",
-                  "--set p_fail= 0.5 (the run has 0.3)", "--no-simplify", "--crn"):
+                  "--set p_fail=0.5 (the run has 0.3)", "--no-simplify", "--crn"):
         assert named in err, named
     # the same values as the run's are not a change
     assert skillcompose_main(["evolve", "--resume", str(d), "--population", "30", "--seed", "4",
