@@ -181,8 +181,9 @@ def handle(args: argparse.Namespace) -> int:
             if backend not in BACKENDS:
                 backend = "serial"
             workers = args.workers if args.workers is not None else info.get("workers")
-            if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-                workers = None
+            if isinstance(workers, bool) or not isinstance(workers, int) or \
+                    not 1 <= workers <= (os.cpu_count() or 1):
+                workers = None  # run.json is data from elsewhere: all cores at most
             seed, simplify_result, simplify_trials = None, None, None
         else:
             if not args.task:
@@ -200,7 +201,8 @@ def handle(args: argparse.Namespace) -> int:
             simplify_trials = 200 if args.simplify_trials is None else args.simplify_trials
         result = evolve(
             task, cfg, seed=seed, workers=workers, backend=backend,
-            out_dir=None if args.resume else args.out, seed_fsa=args.seed_fsa,
+            out_dir=None if args.resume else args.out,
+            seed_fsa=None if args.resume else args.seed_fsa,
             progress=not args.quiet, resume=args.resume,
             simplify_result=simplify_result, simplify_trials=simplify_trials,
         )
