@@ -180,6 +180,11 @@ class RunDir:
             data = cp.read_bytes()
         except OSError as exc:
             raise CheckpointError(f"{cp} cannot be read: {exc.strerror}") from None
+        return self.parse_checkpoint(data)
+
+    def parse_checkpoint(self, data: bytes) -> dict[str, Any]:
+        """The state in a checkpoint's bytes, checked (see :meth:`load_checkpoint`)."""
+        cp = self.checkpoint
         damaged = f"{cp} is damaged"
         first, newline, payload = data.partition(b"\n")
         try:
