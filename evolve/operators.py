@@ -117,9 +117,10 @@ def _start_candidates(g: Genome, exclude: int | None = None) -> list[int]:
 
 
 def fix_start(g: Genome, rng: np.random.Generator) -> bool:
-    """Re-choose the start when it has no edge to another node (after a mutation or a
-    crossover rewired it), among the nodes that have one; then prune. Returns whether the
-    start moved. A genome with no such node keeps its start."""
+    """Re-choose the start when it has no edge to another node (a mutation or a crossover
+    rewired it), among the nodes that have one. Call it before pruning, which would
+    otherwise cut the genome down to the stranded start. Returns whether the start moved;
+    a genome with no such node keeps its start."""
     n = g.nodes.get(g.start)
     if n is not None and any(t >= 0 and t != g.start for t in n.edges):
         return False
@@ -127,7 +128,6 @@ def fix_start(g: Genome, rng: np.random.Generator) -> bool:
     if not pool:
         return False
     g.start = pool[int(rng.integers(len(pool)))]
-    g.prune()
     return True
 
 
@@ -172,6 +172,7 @@ def delete_node(
     if g.start == v:
         pool = _start_candidates(g) or list(g.nodes)
         g.start = pool[int(rng.integers(len(pool)))]
+    fix_start(g, rng)
     g.prune()
     return True
 
@@ -250,6 +251,13 @@ def mutate(
     for k in list(g.nodes):
         if k in g.nodes and rng.random() < cfg.p_mut:
             ops.append(mutate_node(g, k, skills, rng, cfg.p_mut, cfg.param_sigma, w))
+    if cfg.p_param > 0.0:
+        for n in g.nodes.values():
+            if n.params and rng.random() < cfg.p_param:
+                mutate_genes(n.params, rng, cfg.p_mut, cfg.param_sigma)
+                ops.append("params")
+    if fix_start(g, rng):  # before add_node prunes
+        ops.append("fix-start")
     if rng.random() < cfg.p_add and add_node(g, skills, rng, w):
         ops.append("add")
     if rng.random() < cfg.p_del and delete_node(g, skills, rng, w):
@@ -257,8 +265,6 @@ def mutate(
     if rng.random() < cfg.p_mut and change_start(g, rng):
         ops.append("start")
     g.prune()
-    if fix_start(g, rng):
-        ops.append("fix-start")
     return ops
 
 
@@ -308,10 +314,10 @@ def crossover(
     old2 = {k: g2.nodes[k].copy() for k in sub2}
     _implant(g1, sub1, sub2, old1, old2, skills, rng, weight)
     _implant(g2, sub2, sub1, old2, old1, skills, rng, weight)
-    g1.prune()
-    g2.prune()
     fix_start(g1, rng)
     fix_start(g2, rng)
+    g1.prune()
+    g2.prune()
     return num
 
 
