@@ -202,7 +202,8 @@ class _Run:
             self.exported = bool(st.get("exported", False))
         except CheckpointError:
             raise
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError,
+                RecursionError) as exc:
             raise CheckpointError(
                 f"{where} is malformed ({type(exc).__name__}: {exc}); restore it from a copy "
                 "or start afresh"

@@ -57,6 +57,13 @@ def _craft(d: Path, change: Any) -> None:
     rd.save_checkpoint(state)
 
 
+def _deep(depth: int) -> list[Any]:
+    out: list[Any] = []
+    for _ in range(depth):
+        out = [out]
+    return out
+
+
 class _Payload:
     def __init__(self, marker: Path) -> None:
         self.marker = marker
@@ -133,6 +140,8 @@ def test_an_edited_run_json_does_not_resume_as_another_task(
     (lambda st: st.update(rng={"bit_generator": "MT19937"}), "malformed"),
     (lambda st: st.update(generation=-1), "malformed"),
     (lambda st: st.update(cache=[[["a"], 1, 1]]), "malformed"),
+    (lambda st: st["population"][0].__setitem__(0, _deep(900)), "malformed"),
+    (lambda st: st["run"]["task_settings"].update(p_fail=_deep(900)), "task_settings ="),
 ])
 def test_malformed_values_give_one_line(
     run_dir: Path, capsys: pytest.CaptureFixture[str], edit: Any, expected: str
