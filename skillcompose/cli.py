@@ -21,6 +21,7 @@ from .blackboard import DELETED, Blackboard
 from .errors import SkillcomposeError
 from .executor import compile_fsa, summarize, trial_rngs
 from .fsafile import load_fsa
+from .progress import progress_bar
 from .registry import Registry
 from .task import Task, load_task, parse_settings
 
@@ -153,7 +154,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SkillcomposeError(str(exc)) from None
     results = []
     fitness: list[float] = []
+    bar = progress_bar(args.trials, "run")  # on a terminal, once it takes a while
     for k, rng in enumerate(trial_rngs(args.seed, args.trials)):
+        bar.update(1)
         bb = task.setup(rng) if task is not None else Blackboard()
         result = compiled.run(bb, rng, trace=args.trace and k == 0, propagate=args.propagate)
         results.append(result)
@@ -164,6 +167,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if result.error is not None and args.trace and k == 0:
             print(f"state {result.last_state} raised:", file=sys.stderr)
             traceback.print_exception(result.error, file=sys.stderr)
+    bar.close()
     s = summarize(results)
     print(f"{args.file}: {s['trials']} run(s), seed {args.seed}, backend {compiled.backend}")
     width = max(len(o) for o in s["outcomes"])

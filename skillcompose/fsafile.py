@@ -34,7 +34,6 @@ import copy
 import io
 import math
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -45,6 +44,7 @@ from ruamel.yaml.error import MarkedYAMLError, YAMLError
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from .errors import FSAFileError, FSAValidationError, Problem
+from .files import atomic_write
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State
 
 if TYPE_CHECKING:
@@ -437,19 +437,11 @@ def save_fsa(
     fsa: FSA, path: str | os.PathLike[str], registry: Registry | None = None,
     *, header: str | None = None,
 ) -> FSA:
-    """Write ``fsa`` to ``path`` atomically; return it bound to that file for later saves."""
+    """Write ``fsa`` to ``path`` atomically, keeping the mode of the file it replaces (a new
+    file gets the umask's); return it bound to that file for later saves."""
     text = dumps_fsa(fsa, registry, header=header)
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return loads_fsa(text, str(p))
+    atomic_write(path, text.encode("utf-8"))
+    return loads_fsa(text, str(Path(path)))
 
 
 def _yaml_out() -> YAML:

@@ -47,6 +47,7 @@ from .errors import SkillcomposeError
 from .executor import compile_fsa
 from .fsa import ERROR, FSA, TIMEOUT
 from .fsafile import load_fsa
+from .progress import progress_bar
 from .task import Task, TaskRef, parse_settings
 
 __all__ = [
@@ -151,12 +152,19 @@ def robustness_sweep(
         for v in values
         for start, stop in _chunks(reps, workers, len(values))
     ]
-    if workers == 1 or len(jobs) == 1:
-        parts = [_run_chunk(job) for job in jobs]
-    else:
-        ctx = multiprocessing.get_context()  # the platform default start method
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
-            parts = list(pool.map(_run_chunk, jobs))
+    parts = []
+    with progress_bar(len(values) * reps, "run", f"sweep of {setting}") as bar:
+        if workers == 1 or len(jobs) == 1:
+            for job in jobs:
+                parts.append(_run_chunk(job))
+                bar.update(job.stop - job.start)
+        else:
+            ctx = multiprocessing.get_context()  # the platform default start method
+            with ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
+                                     mp_context=ctx) as pool:
+                for job, part in zip(jobs, pool.map(_run_chunk, jobs), strict=True):
+                    parts.append(part)
+                    bar.update(job.stop - job.start)
 
     rows = []
     per_value = len(jobs) // len(values)

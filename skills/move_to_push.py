@@ -119,16 +119,14 @@ def base_hits_table(
     tx, ty = float(table.center_m[0]), float(table.center_m[1])
     tw, tl = float(table.half_extents_m[0]), float(table.half_extents_m[1])
     ta = float(table.yaw_rad)
-    axes = (
-        (math.cos(yaw), math.sin(yaw)), (-math.sin(yaw), math.cos(yaw)),
-        (math.cos(ta), math.sin(ta)), (-math.sin(ta), math.cos(ta)),
-    )
     dx, dy = tx - x, ty - y
-    for ax, ay in axes:
-        r_base = hx * abs(ax * math.cos(yaw) + ay * math.sin(yaw)) + \
-            hy * abs(-ax * math.sin(yaw) + ay * math.cos(yaw))
-        r_table = tw * abs(ax * math.cos(ta) + ay * math.sin(ta)) + \
-            tl * abs(-ax * math.sin(ta) + ay * math.cos(ta))
+    if dx * dx + dy * dy > (hx + hy + tw + tl) ** 2:  # far apart: no trigonometry needed
+        return False
+    c, s = math.cos(yaw), math.sin(yaw)
+    tc, ts = math.cos(ta), math.sin(ta)
+    for ax, ay in ((c, s), (-s, c), (tc, ts), (-ts, tc)):
+        r_base = hx * abs(ax * c + ay * s) + hy * abs(-ax * s + ay * c)
+        r_table = tw * abs(ax * tc + ay * ts) + tl * abs(-ax * ts + ay * tc)
         if abs(dx * ax + dy * ay) > r_base + r_table:
             return False
     return True

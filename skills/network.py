@@ -140,4 +140,5 @@ def make_network(topology: Topology, weights: Sequence[float]) -> Network:
     """
     if topology not in TOPOLOGIES:
         raise ValueError(f"unknown network topology {topology!r}; use one of {TOPOLOGIES}")
-    return _cached(topology, tuple(float(x) for x in weights))
+    key = weights if type(weights) is tuple else tuple(float(x) for x in weights)
+    return _cached(topology, key)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from robots.collision import Box
-from skillcompose import FSA, Blackboard, Registry, State, compile_fsa, dumps_fsa, load_task
+from skillcompose import FSA, Blackboard, Registry, State, compile_fsa, load_task
 from skills.move_to_push import (
     BASE_STEP_M,
     TORSO_RANGE_M,
@@ -94,7 +94,7 @@ def test_recognise_then_move_writes_the_pose(registry: Registry) -> None:
     ("weights", "base", "why"),
     [
         (constant_weights(1.2, 0.0, 0.0, 0.1, "left"), (0.0, 0.0, 0.0), "into the table"),
-        (constant_weights(0.6, 0.0, 0.0, 0.1, "left"), (0.0, 0.0, 0.0), "within 15 cm of it"),
+        (constant_weights(0.64, 0.0, 0.0, 0.1, "left"), (0.0, 0.0, 0.0), "within 5 cm of it"),
         (constant_weights(-2.0, 0.0, 0.0, 0.1, "left"), (-1.0, 0.0, 0.0), "out of the room"),
     ],
 )
@@ -198,20 +198,20 @@ def test_task_settings_are_checked() -> None:
 
 
 @pytest.mark.kinematics
-def test_one_file_runs_on_both_backends_from_the_command_line(tmp_path: Path) -> None:
-    registry = load_task("examples.move_to_push").registry
-    path = tmp_path / "push.yaml"
-    path.write_text(dumps_fsa(fsa_with(GOOD), registry=registry))
+def test_the_evolved_file_runs_on_both_backends_from_the_command_line() -> None:
+    """The shipped MoveToReach, unchanged: pushed in most judged worlds on either backend."""
+    path = ROOT / "examples" / "move_to_reach.fsa.yaml"
     for backend in ("sim", "kinematic"):
         out = subprocess.run(
             [sys.executable, "-m", "skillcompose", "run", str(path), "--task",
-             "examples.move_to_push", "--set", f"backend={backend}", "--trials", "3",
-             "--seed", "1"],
+             "examples.move_to_push", "--set", f"backend={backend}", "--set", "judge=true",
+             "--trials", "20", "--seed", "1"],
             capture_output=True, text=True, cwd=ROOT, timeout=300,
         )
         assert out.returncode == 0, out.stderr
-        assert f"3 run(s), seed 1, backend {backend}" in out.stdout
-        assert "success        3  100.00%" in out.stdout
+        assert f"20 run(s), seed 1, backend {backend}" in out.stdout
+        counts = dict(line.split()[:2] for line in out.stdout.splitlines()[1:3])
+        assert int(counts.get("success", 0)) >= 16, out.stdout
 
 
 @pytest.mark.slow
