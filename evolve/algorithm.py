@@ -28,22 +28,34 @@ from typing import Any, TextIO
 import numpy as np
 
 from skillcompose import FSA, load_fsa
+from skillcompose.executor import trial_rngs
 from skillcompose.task import Task
 
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
-from .evaluation import BACKENDS, Job, make_evaluator
+from .evaluation import (
+    BACKENDS,
+    TIMED_OUT,
+    EvalLimits,
+    Faults,
+    Guard,
+    Job,
+    evaluate_episode,
+    evaluate_job,
+    make_evaluator,
+)
 from .genome import Genome, GenomeCompiler, SkillSet
 from .operators import crossover, initialize, mutate
 from .rundir import RunDir
 from .simplify import simplify
 
-__all__ = ["EvolutionResult", "GenerationRecord", "evolve"]
+__all__ = ["EvolutionResult", "GenerationRecord", "check_fresh", "evolve"]
 
 _PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 _BREED = 0
 _EVAL = 1
 _CONFIRM = 2
+_FRESH = 3
 
 
 @dataclass(frozen=True)
@@ -59,6 +71,7 @@ class GenerationRecord:
     total_evaluations: int
     evals_per_s: float
     wall_time: float  # seconds since the run started, across resumes
+    faults: dict[str, int] = field(default_factory=dict)  # Faults.to_dict() of the generation
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -80,6 +93,14 @@ class EvolutionResult:
     seed: int
     out_dir: Path | None = None
     files: list[Path] = field(default_factory=list)
+    faults: Faults = field(default_factory=Faults)  # over the whole run
+    fresh: dict[str, Any] = field(default_factory=dict)  # see check_fresh (empty: not run)
+
+    @property
+    def nothing_succeeded(self) -> bool:
+        """Every evaluation of the run failed (raised in every episode, timed out, or killed
+        its worker): nothing was learnt about the task."""
+        return self.faults.jobs > 0 and self.faults.failed == self.faults.jobs
 
 
 def _nan_safe(f: float, minimize: bool) -> float:
@@ -116,6 +137,8 @@ class _Run:
         self.wall_before = 0.0
         self.next_uid = 0
         self.elite_fitness: dict[int, float] = {}
+        self.first_error: str | None = None  # the run's first exception, summarised
+        self.gen_faults = Faults()
         self.t0 = time.perf_counter()
 
     # -- checkpoint ------------------------------------------------------------------------
@@ -133,6 +156,7 @@ class _Run:
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
             "elite_fitness": self.elite_fitness,
+            "first_error": self.first_error,
         }
 
     def restore(self, st: Mapping[str, Any]) -> None:
@@ -146,6 +170,7 @@ class _Run:
         self.wall_before = st["wall_time"]
         self.next_uid = st["next_uid"]
         self.elite_fitness = st["elite_fitness"]
+        self.first_error = st.get("first_error")
         self.t0 = time.perf_counter()
 
     def wall(self) -> float:
@@ -202,6 +227,9 @@ class _Run:
 
         results = self.evaluator.evaluate(new_jobs(), expected=cfg.population)
         assert self.generation == g and len(fitness) == len(self.population)
+        self.gen_faults = self.evaluator.faults
+        if self.first_error is None and self.gen_faults.first_error is not None:
+            self.first_error = f"generation {g}: {self.gen_faults.first_error}"
         episodes = sum(j.trials for j in jobs)
         for job, idx, f in zip(jobs, slots, results, strict=True):
             f = _nan_safe(float(f), self.task.minimize)
@@ -288,6 +316,7 @@ class _Run:
             total_evaluations=self.evaluations,
             evals_per_s=episodes / gen_time if gen_time > 0 else 0.0,
             wall_time=self.wall(),
+            faults=self.gen_faults.to_dict(),
         )
         self.history.append(rec)
         if self.rundir is not None:
@@ -302,9 +331,11 @@ class _Run:
         that measured mean and evolution goes on."""
         assert self.best is not None
         g, _, gen = self.best
-        seq = np.random.SeedSequence(self.seed, spawn_key=(_CONFIRM, self.generation))
-        mean = self.task.evaluate(self.compiler.compile(g), seq, self.cfg.confirm_trials)
-        self.evaluations += self.cfg.confirm_trials
+        trials = 1 if self.task.deterministic else self.cfg.confirm_trials
+        job = Job.of(g, self.seed, (_CONFIRM, self.generation), trials)
+        with Guard(self.cfg.eval_time_limit) as guard:
+            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False)
+        self.evaluations += trials
         if self.task.solved(mean):
             return True
         self.best = (g, mean, gen)
@@ -339,6 +370,18 @@ class _Run:
             "evolve from it with `--seed-fsa FILE`."
         )
 
+    def faults(self) -> Faults:
+        """The run's faults so far, from its history."""
+        total = Faults()
+        for r in self.history:
+            gen = Faults()
+            for k, v in r.faults.items():
+                if k in _FAULT_FIELDS:
+                    setattr(gen, k, int(v))
+            total.add(gen)
+        total.first_error = self.first_error
+        return total
+
     def show_progress(self, rec: GenerationRecord) -> None:
         if self.progress is None:
             return
@@ -353,12 +396,56 @@ class _Run:
             f"best {rec.best:.4g} size {rec.best_size} {rec.evals_per_s:,.0f} evals/s "
             f"ETA {_hms(eta)}"
         )
+        faults = self.faults().describe()
+        if faults:
+            text += f" faults: {faults}"
         if self._tty:  # one line, redrawn in place
             self.progress.write(f"\r{text}   ")
         elif rec.wall_time - self._last_line >= 5.0:  # a log: a line every 5 s at most
             self._last_line = rec.wall_time
             self.progress.write(text + "\n")
         self.progress.flush()
+
+
+_FAULT_FIELDS = frozenset(Faults().to_dict())
+
+
+def check_fresh(
+    task: Task, fsa: FSA, seed: int, trials: int, time_limit: float | None = None
+) -> dict[str, Any]:
+    """How ``fsa`` does on ``trials`` fresh episodes (worlds from ``SeedSequence(seed,
+    spawn_key=(3,))``, never seen during evolution or simplification): the share that
+    reach the task's target, the mean fitness, and the episodes that raised or ran past
+    ``time_limit`` [s] (each scores worst)."""
+    compiled = task.compile(fsa)
+    scores: list[float] = []
+    raised = timeouts = 0
+    seq = np.random.SeedSequence(seed, spawn_key=(_FRESH,))
+    with Guard(time_limit) as guard:
+        for rng in trial_rngs(seq, trials):
+            f, code = evaluate_episode(task, compiled, rng, guard)
+            raised += code >> 2
+            timeouts += code & TIMED_OUT
+            scores.append(f)
+    n = len(scores)
+    return {
+        "episodes": n,
+        "success_rate": sum(map(task.solved, scores)) / n if n else 0.0,
+        "mean_fitness": float(statistics.fmean(scores)) if n else math.nan,
+        "raised": raised,
+        "timeouts": timeouts,
+        "seed": seed,
+    }
+
+
+def fresh_differs(task: Task, evolved: float, fresh: float) -> bool:
+    """Whether the fitness on fresh episodes tells another story than the evolved one: the
+    task counts one as solved and not the other, or they differ by more than 10 %."""
+    if task.solved(evolved) != task.solved(fresh):
+        return True
+    if math.isinf(evolved) or math.isinf(fresh) or math.isnan(fresh):
+        return evolved != fresh
+    return abs(fresh - evolved) > 0.1 * max(abs(fresh), abs(evolved))
 
 
 def _hms(s: float) -> str:
@@ -379,6 +466,7 @@ def evolve(
     resume: str | os.PathLike[str] | None = None,
     simplify_result: bool = True,
     simplify_trials: int = 200,
+    check_trials: int = 200,
     on_generation: Callable[[GenerationRecord], None] | None = None,
 ) -> EvolutionResult:
     """Evolve an FSA for ``task`` (algorithm 1), stopping when solved or out of generations.
@@ -392,6 +480,10 @@ def evolve(
     - ``seed_fsa``: an FSA (or file) placed in the first population, the rest random.
     - ``simplify_result``: simplify the best FSA at the end with ``simplify_trials`` fresh
       trials (see :func:`evolve.simplify`).
+    - ``check_trials``: fresh episodes on which the exported FSA is measured at the end
+      (:func:`check_fresh`; ``result.fresh``, ``run.json``); 0 skips it. A deterministic
+      task (``Task.deterministic``) uses one trial for evaluations, simplification and
+      this check.
     - ``progress``: a live progress line on stderr (or on the given stream).
     """
     if backend not in BACKENDS:
@@ -416,6 +508,10 @@ def evolve(
     seed = int(seed)
     skills = SkillSet.from_task(task)
     trials = cfg.trials or task.trials
+    if task.deterministic:  # every episode is the same: one says it all
+        trials = 1
+        simplify_trials = min(simplify_trials, 1)
+        check_trials = min(check_trials, 1)
     stream: TextIO | None = sys.stderr if progress is True else (progress or None)
     if backend == "process" and workers is None:
         workers = os.cpu_count() or 1
@@ -437,7 +533,8 @@ def evolve(
                 seed_fsa, FSA) else None,
             "config": cfg.to_dict(),
         })
-    evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker)
+    limits = EvalLimits(cfg.eval_time_limit, cfg.worker_max_jobs, cfg.worker_max_growth_mb)
+    evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker, limits)
     run = _Run(task, cfg, seed, skills, evaluator, rundir, stream, trials, simplify_trials)
     try:
         if checkpoint is not None:
@@ -490,12 +587,26 @@ def evolve(
     if simplify_result:
         best = simplify(task, evolved, seed=seed, trials=simplify_trials)
         best = best.replace(meta={**evolved.meta, **best.meta}, name=evolved.name)
+    fresh: dict[str, Any] = {}
+    if check_trials > 0:
+        fresh = check_fresh(task, best, seed, check_trials, cfg.eval_time_limit)
+        fresh["differs"] = fresh_differs(task, best_f, fresh["mean_fitness"])
+    faults = run.faults()
     files: list[Path] = []
     if rundir is not None:
         rundir.save_checkpoint(run.state())
         rundir.write_best(evolved, task.registry, run.header(), rundir.best_evolved_yaml)
         rundir.write_best(best, task.registry, run.header())
         rundir.plots([r.to_dict() for r in run.history], best)
+        rundir.update_run_info({"result": {
+            "solved": task.solved(best_f),
+            "best_fitness": best_f,
+            "generations": run.generation,
+            "evaluations": run.evaluations,
+            "fresh": fresh,
+            "faults": faults.to_dict(),
+            "first_error": faults.first_error,
+        }})
         files = [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
                  rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
     return EvolutionResult(
@@ -511,4 +622,6 @@ def evolve(
         seed=seed,
         out_dir=rundir.path if rundir is not None else None,
         files=files,
+        faults=faults,
+        fresh=fresh,
     )

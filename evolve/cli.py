@@ -72,6 +72,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="export the best FSA as evolved, without simplification")
     p.add_argument("--simplify-trials", type=int, default=200,
                    help="fresh trials per simplification test (default 200)")
+    p.add_argument("--check-trials", type=int, default=200,
+                   help="fresh episodes on which the exported FSA is measured at the end "
+                   "(default 200; 0: none)")
+    p.add_argument("--eval-time-limit", type=float, metavar="SECONDS",
+                   help="wall-clock limit of one evaluation; past it, it scores worst and "
+                   "counts as a time-out (default 60; 0: no limit)")
+    p.add_argument("--worker-max-jobs", type=int, metavar="N",
+                   help="replace a worker after N evaluations (default 0: never)")
+    p.add_argument("--worker-max-growth-mb", type=float, metavar="MB",
+                   help="replace a worker whose memory grew by more than MB (default 1024; "
+                   "0: never)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -83,10 +94,14 @@ def _config(args: argparse.Namespace) -> EvolutionConfig:
         ("tournament", "tournament"), ("param_sigma", "param_sigma"),
         ("confirm_trials", "confirm_trials"),
         ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
+        ("worker_max_jobs", "worker_max_jobs"),
+        ("worker_max_growth_mb", "worker_max_growth_mb"),
     ):
         v = getattr(args, opt)
         if v is not None:
             changes[name] = v
+    if args.eval_time_limit is not None:
+        changes["eval_time_limit"] = args.eval_time_limit or None
     if args.crn:
         changes["common_random_numbers"] = True
     if args.cache:
@@ -126,6 +141,7 @@ def handle(args: argparse.Namespace) -> int:
             out_dir=None if args.resume else args.out, seed_fsa=args.seed_fsa,
             progress=not args.quiet, resume=args.resume,
             simplify_result=not args.no_simplify, simplify_trials=args.simplify_trials,
+            check_trials=args.check_trials,
         )
     except SkillcomposeError as exc:
         print(f"skillcompose evolve: error: {exc}", file=sys.stderr)
@@ -137,10 +153,37 @@ def handle(args: argparse.Namespace) -> int:
         f"{result.wall_time:.1f} s; best FSA has {len(result.best_fsa.states)} states "
         f"(evolved: {len(result.evolved_fsa.states)})"
     )
+    fresh = result.fresh
+    if fresh:
+        print(
+            f"the exported FSA on {fresh['episodes']} fresh episodes: "
+            f"{100 * fresh['success_rate']:.1f} % reach the target, mean fitness "
+            f"{fresh['mean_fitness']:g}"
+        )
+        if fresh["differs"]:
+            print(
+                f"warning: that differs from the evolved fitness {result.best_fitness:g}: "
+                "evolution measured it on its own few episodes; trust the fresh ones "
+                "(more trials per evaluation, --preset robust or --confirm N evolve FSAs "
+                "that hold)", file=sys.stderr,
+            )
+    faults = result.faults
+    if faults.total:
+        print(f"faults: {faults.describe()} in {faults.jobs} evaluations "
+              f"({faults.failed} failed entirely); per generation in history.jsonl",
+              file=sys.stderr)
+        if faults.first_error:
+            print(f"first error, {faults.first_error}", file=sys.stderr)
     if result.files:
         print("files written:")
         for f in result.files:
             print(f"  {f}")
+    if result.nothing_succeeded:
+        print(
+            f"skillcompose evolve: error: every one of the {faults.jobs} evaluations failed "
+            "(see the first error above); fix the task or its skills", file=sys.stderr,
+        )
+        return 1
     return 0
 
 

@@ -58,7 +58,9 @@ class SkillSet:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
 
     @classmethod
-    def from_task(cls, task: Task, terminals: tuple[str, ...] = ("success", "failure")) -> SkillSet:
+    def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None) -> SkillSet:
+        """The task's skills; ``terminals`` default to the task's own (``Task.terminals``)."""
+        terminals = tuple(task.terminals if terminals is None else terminals)
         choices = []
         enders = task.terminal_skills
         codes = {t: -(k + 1) for k, t in enumerate(terminals)}

@@ -72,6 +72,12 @@ class RunDir:
         _atomic_write(self.run_json, json.dumps(run_info, indent=2, default=str).encode())
         self.history.write_text("")
 
+    def update_run_info(self, changes: Mapping[str, Any]) -> None:
+        """Add or replace top-level entries of ``run.json`` (the result, at the end)."""
+        info = self.load_run_info()
+        info.update(changes)
+        _atomic_write(self.run_json, json.dumps(info, indent=2, default=str).encode())
+
     def append_history(self, record: Mapping[str, Any]) -> None:
         with self.history.open("a", encoding="utf-8") as f:
             f.write(json.dumps(record) + "\n")

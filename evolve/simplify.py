@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from skillcompose import FSA, compile_fsa
+from skillcompose import FSA
 from skillcompose.task import Task
 
 __all__ = ["merge_duplicates", "simplify"]
@@ -85,13 +85,11 @@ def simplify(
     result records what was removed and the fitness before and after under
     ``meta['simplified']``.
     """
-    registry, backend = task.registry, task.backend
-
     def measure(f: FSA) -> tuple[float, float]:
         """Mean fitness and solved rate (share of worlds at the task's target)."""
         try:
             scores = [
-                x for _, x in task.run_trials(compile_fsa(f, registry, backend), seed, trials)
+                x for _, x in task.run_trials(task.compile(f), seed, trials)
             ]
         except Exception:
             return task.worst, 0.0
