@@ -163,14 +163,18 @@ class Guard:
     ``KeyboardInterrupt`` that a skill raised.
 
     Works through ``SIGALRM`` and ``SIGINT`` handlers, so only in the main thread of a
-    process (elsewhere :meth:`install` leaves it inactive: no limit). Once the limit has
-    passed the alarm repeats every second, in case the skill catches the first one.
+    process (elsewhere :meth:`install` leaves it inactive: no limit). While installed, an
+    interval timer ticks every quarter of the limit (at most every second); a tick that
+    finds the armed evaluation past its limit raises into it, and so does every later tick
+    until it is disarmed (a skill that catches the first one gets the next). Arming and
+    disarming an evaluation only note the time: no system call per evaluation.
     """
 
     def __init__(self, time_limit: float | None) -> None:
         self.time_limit = time_limit
         self.active = False
         self.armed = False
+        self.started = 0.0
         self.interrupted = False
         self.tracks_interrupts = False
         self._old: list[tuple[int, Any]] = []
@@ -184,11 +188,15 @@ class Guard:
             self.tracks_interrupts = True
         if self.time_limit is not None and hasattr(signal, "setitimer"):
             self._old.append((signal.SIGALRM, signal.signal(signal.SIGALRM, self._on_alarm)))
+            tick = min(1.0, self.time_limit / 4)
+            signal.setitimer(signal.ITIMER_REAL, tick, tick)
             self.active = True
         return self
 
     def uninstall(self) -> None:
-        self.disarm()
+        self.armed = False
+        if self.active:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
         self.active = self.tracks_interrupts = False
         for sig, handler in reversed(self._old):
             signal.signal(sig, handler)
@@ -201,18 +209,15 @@ class Guard:
         self.uninstall()
 
     def arm(self) -> None:
-        if self.active:
-            assert self.time_limit is not None
-            self.armed = True
-            signal.setitimer(signal.ITIMER_REAL, self.time_limit, 1.0)
+        self.started = time.monotonic()
+        self.armed = self.active
 
     def disarm(self) -> None:
-        if self.armed:
-            self.armed = False
-            signal.setitimer(signal.ITIMER_REAL, 0.0)
+        self.armed = False
 
     def _on_alarm(self, signum: int, frame: FrameType | None) -> None:
-        if self.armed:
+        if self.armed and self.time_limit is not None and \
+                time.monotonic() - self.started > self.time_limit:
             raise _TimeUp
 
     def _on_interrupt(self, signum: int, frame: FrameType | None) -> None:
