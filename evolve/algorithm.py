@@ -229,7 +229,7 @@ class _Run:
         assert self.generation == g and len(fitness) == len(self.population)
         self.gen_faults = self.evaluator.faults
         if self.first_error is None and self.gen_faults.first_error is not None:
-            self.first_error = f"generation {g}: {self.gen_faults.first_error}"
+            self.first_error = f"in generation {g}: {self.gen_faults.first_error}"
         episodes = sum(j.trials for j in jobs)
         for job, idx, f in zip(jobs, slots, results, strict=True):
             f = _nan_safe(float(f), self.task.minimize)

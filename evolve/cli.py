@@ -173,7 +173,7 @@ def handle(args: argparse.Namespace) -> int:
               f"({faults.failed} failed entirely); per generation in history.jsonl",
               file=sys.stderr)
         if faults.first_error:
-            print(f"first error, {faults.first_error}", file=sys.stderr)
+            print(f"first error {faults.first_error}", file=sys.stderr)
     if result.files:
         print("files written:")
         for f in result.files:
