@@ -139,6 +139,7 @@ class _Run:
         self.elite_fitness: dict[int, float] = {}
         self.first_error: str | None = None  # the run's first exception, summarised
         self.gen_faults = Faults()
+        self.fault_totals = Faults()  # over the run so far, for the progress line
         self.t0 = time.perf_counter()
 
     # -- checkpoint ------------------------------------------------------------------------
@@ -171,6 +172,7 @@ class _Run:
         self.next_uid = st["next_uid"]
         self.elite_fitness = st["elite_fitness"]
         self.first_error = st.get("first_error")
+        self.fault_totals = self.faults()
         self.t0 = time.perf_counter()
 
     def wall(self) -> float:
@@ -318,6 +320,7 @@ class _Run:
             wall_time=self.wall(),
             faults=self.gen_faults.to_dict(),
         )
+        self.fault_totals.add(self.gen_faults)
         self.history.append(rec)
         if self.rundir is not None:
             self.rundir.append_history(rec.to_dict())
@@ -396,7 +399,7 @@ class _Run:
             f"best {rec.best:.4g} size {rec.best_size} {rec.evals_per_s:,.0f} evals/s "
             f"ETA {_hms(eta)}"
         )
-        faults = self.faults().describe()
+        faults = self.fault_totals.describe()
         if faults:
             text += f" faults: {faults}"
         if self._tty:  # one line, redrawn in place
@@ -585,7 +588,8 @@ def evolve(
     evolved = run.best_fsa()
     best = evolved
     if simplify_result:
-        best = simplify(task, evolved, seed=seed, trials=simplify_trials)
+        best = simplify(task, evolved, seed=seed, trials=simplify_trials,
+                        time_limit=cfg.eval_time_limit)
         best = best.replace(meta={**evolved.meta, **best.meta}, name=evolved.name)
     fresh: dict[str, Any] = {}
     if check_trials > 0:

@@ -880,13 +880,15 @@ class RayEvaluator:
         self._actor_cls = ray.remote(_RayWorker)
         self._ref = task.ref
         self._terminals = skills.terminals
-        self._actors = [self._new_actor() for _ in range(self.workers)]
+        self._actors = [self._new_actor(ready=False) for _ in range(self.workers)]
+        ray.get([a.ready.remote() for a in self._actors])
         self.lost = 0
         self.faults = Faults()
 
-    def _new_actor(self) -> Any:
+    def _new_actor(self, ready: bool = True) -> Any:
         actor: Any = self._actor_cls.remote(self._ref, self._terminals, self.limits)
-        self._ray.get(actor.ready.remote())  # built: its time does not count against a job
+        if ready:  # built: its start does not count against a job's time
+            self._ray.get(actor.ready.remote())
         return actor
 
     def _renew(self, a: int) -> None:

@@ -317,3 +317,15 @@ def test_faults_add_up() -> None:
     a.count(1, 3)  # a time-out
     assert (a.jobs, a.failed, a.raised, a.timeouts) == (3, 2, 4, 1)
     assert a.describe() == "4 raised, 1 time-out"
+
+
+def test_simplification_and_the_fresh_check_survive_sys_exit() -> None:
+    from evolve import check_fresh, simplify
+
+    task = load_task(FAULTY, fault="exit", p_fault=0.5)
+    fsa = FSA({"F": State("FindBlock", {}, {"success": "X"}),
+               "X": State("Fault", {}, {"success": "success", "failure": "failure"})}, "F")
+    simplified = simplify(task, fsa, seed=0, trials=20)
+    assert simplified.meta["simplified"]["trials"] == 20
+    fresh = check_fresh(task, fsa, seed=0, trials=20)
+    assert 0 < fresh["raised"] < 20 and fresh["episodes"] == 20
