@@ -359,9 +359,15 @@ class _Reader:
                                     fix="write `params: {name: value}`")
                 for pname, (_, pv) in (pmap or {}).items():
                     self.mark(("states", sname, "params", pname), pv)
+                    if isinstance(pv, SequenceNode) and all(
+                        isinstance(item, ScalarNode) for item in pv.value
+                    ):  # a vector parameter: one flat list of numbers
+                        params[pname] = tuple(self.scalar(item) for item in pv.value)
+                        continue
                     if not isinstance(pv, ScalarNode):
                         self.fail(pv, f"parameter {pname!r} must be a single value "
-                                  f"(number, true/false or text), got {_node_kind(pv)}",
+                                  f"(number, true/false or text) or, for a vector "
+                                  f"parameter, a flat list of numbers; got {_node_kind(pv)}",
                                   state=sname, key=pname)
                         ok = False
                         continue
@@ -486,7 +492,8 @@ def _state_map(st: State, registry: Registry | None) -> CommentedMap:
     if st.params:
         pm = CommentedMap()
         for k, v in st.params.items():
-            pm[k] = _py(v)
+            value = _py(v)
+            pm[k] = _flow_list(value) if isinstance(value, list) else value
             c = _param_comment(registry, st.skill, k)
             if c:
                 pm.yaml_add_eol_comment(c, k)
@@ -527,7 +534,7 @@ def _set(m: CommentedMap, key: str, value: Any) -> None:
     value = _py(value)
     if key in m and _equal(_plain(m[key]), value) and _emits_exactly(m[key]):
         return
-    if isinstance(value, list) and key == "terminals":
+    if isinstance(value, list):  # terminals, vector parameters: one line (or a few)
         value = _flow_list(value)
     m[key] = value
 

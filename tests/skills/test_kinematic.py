@@ -47,7 +47,7 @@ def test_register_beside_the_abstract_skills() -> None:
     assert {s.name for s in added} == {s.name for s in kn.SKILLS}
     for s in pw.SKILLS:
         assert sorted(registry.backends(s.name)) == ["kinematic", "sim"]
-    assert registry.resolve("MoveBase", "kinematic") is kn.move_base
+    assert registry.resolve("MoveBasePose", "kinematic") is kn.move_base_pose
 
 
 # -- the pour-water twins ------------------------------------------------------------------
