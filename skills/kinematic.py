@@ -60,8 +60,6 @@ import pinocchio as pin
 from robots.collision import BASE_HALF_EXTENTS_M, Box, Scene, check_collisions
 from robots.model import ARMS, Arm
 from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
-from skills.move_to_push import SAFETY_M, base_hits_table, base_in_room, network_goal
-from skills.network import WEIGHT_RANGE, Topology, weight_count
 from skills.kinematic_world import (
     COLLISION_MARGIN_M,
     DETAIL_KEY,
@@ -91,6 +89,8 @@ from skills.kinematic_world import (
     top_down_grasp_world,
     transform_robot_to_world,
 )
+from skills.move_to_push import SAFETY_M, base_hits_table, base_in_room, network_goal
+from skills.network import WEIGHT_RANGE, Topology, weight_count
 from skills.pour_water import (
     APPROACH_OFFSET_M,
     APPROACH_TOLERANCE_M,

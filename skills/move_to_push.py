@@ -92,7 +92,7 @@ def network_inputs(object_robot: Sequence[float], torso_m: float) -> np.ndarray:
 
 
 def base_goal(
-    outputs: Sequence[float], base_pose_world: Sequence[float]
+    outputs: Sequence[float] | np.ndarray, base_pose_world: Sequence[float]
 ) -> BaseGoal:
     """Where the five network outputs send the robot (see the module's docstring)."""
     x, y, yaw = (float(v) for v in base_pose_world)

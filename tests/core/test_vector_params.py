@@ -105,7 +105,7 @@ def test_a_twin_with_another_length_is_refused() -> None:
         return "success"
 
     registry = _registry()
-    with pytest.raises(RegistryError, match="w: 5 floats.*every backend of a skill needs"):
+    with pytest.raises(RegistryError, match=r"w: 5 floats.*every backend of a skill needs"):
         registry.add(other)
 
 

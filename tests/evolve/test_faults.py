@@ -38,7 +38,7 @@ def _jobs(task: Task, skill_names: list[str], trials: int = 1) -> list[Job]:
     for i, name in enumerate(skill_names):
         k = skills.index[name]
         edges = [-1] * len(skills.choices[k].outcomes)
-        jobs.append(Job.of(Genome({0: Node(k, [0.5] * len(skills.choices[k].params), edges)}, 0),
+        jobs.append(Job.of(Genome({0: Node(k, [0.5] * skills.choices[k].genes, edges)}, 0),
                            0, (1, 0, i), trials))
     return jobs
 
