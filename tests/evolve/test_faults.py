@@ -202,6 +202,7 @@ def test_faults_are_recorded_per_generation_and_shown(tmp_path: Path) -> None:
                     check_trials=5)
     pool = evolve(task, SMALL, seed=1, backend="process", workers=2, check_trials=5)
     assert _history(serial) == _history(pool)
+    assert serial.faults.first_error == pool.faults.first_error  # the first in job order
     raised = [r.faults["raised"] for r in serial.history]
     assert raised[0] > 0 and serial.faults.raised == sum(raised)
     assert serial.faults.first_error is not None
@@ -329,3 +330,19 @@ def test_simplification_and_the_fresh_check_survive_sys_exit() -> None:
     assert simplified.meta["simplified"]["trials"] == 20
     fresh = check_fresh(task, fsa, seed=0, trials=20)
     assert 0 < fresh["raised"] < 20 and fresh["episodes"] == 20
+
+
+@pytest.mark.slow
+def test_faults_on_ray_equal_the_serial_run() -> None:
+    ray = pytest.importorskip("ray")
+    task = load_task(FAULTY, fault="raise", p_fault=0.5)
+    try:
+        serial = evolve(task, SMALL, seed=3, simplify_result=False, check_trials=0)
+        on_ray = evolve(task, SMALL, seed=3, backend="ray", workers=2, simplify_result=False,
+                        check_trials=0)
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+    assert sum(r.faults["raised"] for r in serial.history) > 0
+    assert _history(serial) == _history(on_ray)
+    assert serial.faults.first_error == on_ray.faults.first_error
