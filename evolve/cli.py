@@ -40,9 +40,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--population", type=int, help="individuals N (default 300, table 1)")
     p.add_argument("--initial-nodes", type=int, help="initial nodes S (default 50, table 1)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="starting settings: paper (table 1, the default) or robust (our best "
+                   help="starting settings: paper (table 1, the default), robust (our best "
                    "options: N=600, 3 shared trials, elitism 2, tournament 3, S=12, sigma "
-                   "0.1, solutions confirmed on 20 fresh trials); the flags below override it")
+                   "0.1, solutions confirmed on 20 fresh trials) or push (for many "
+                   "parameters, e.g. a network's weights: N=300, the task's shared trials, "
+                   "every mutated node's parameters perturbed, confirmed on 200 fresh "
+                   "trials); the flags below override it")
     p.add_argument("--tournament", type=int, help="tournament size (default 2)")
     p.add_argument("--param-sigma", type=float,
                    help="standard deviation of parameter noise in [0, 1] units (default 0.05)")

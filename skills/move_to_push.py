@@ -56,7 +56,7 @@ __all__ = [
     "register",
 ]
 
-SAFETY_M = 0.15
+SAFETY_M = 0.05
 """MoveBase keeps its base footprint this far from the table [m], as the robot's navigation
 did (the paper: most failures on the robot came from its "safety constraints")."""
 BASE_STEP_M = 2.5

@@ -212,3 +212,16 @@ def test_one_file_runs_on_both_backends_from_the_command_line(tmp_path: Path) ->
         assert out.returncode == 0, out.stderr
         assert f"3 run(s), seed 1, backend {backend}" in out.stdout
         assert "success        3  100.00%" in out.stdout
+
+
+@pytest.mark.slow
+def test_a_short_evolution_improves_the_push() -> None:
+    from evolve import PRESETS, EvolutionConfig, evolve
+
+    task = load_task("examples.move_to_push", trials=5)
+    cfg = EvolutionConfig(**{**PRESETS["push"], "population": 60, "generations": 30,
+                             "confirm_trials": 20})
+    result = evolve(task, cfg, seed=1, workers=1, backend="serial")
+    first = result.history[0].best
+    best = max(h.best for h in result.history)
+    assert best > first and best >= 0.4, [h.best for h in result.history]
