@@ -15,11 +15,13 @@ saved as an editable FSA file that ``skillcompose run`` runs and ``--seed-fsa`` 
 
 from __future__ import annotations
 
-from .algorithm import EvolutionResult, GenerationRecord, evolve
+from .algorithm import EvolutionResult, GenerationRecord, check_fresh, evolve
 from .config import PRESETS, EvolutionConfig
 from .errors import CheckpointError, EvolutionConfigError, EvolutionError, SeedFSAError
 from .evaluation import (
     BACKENDS,
+    EvalLimits,
+    Faults,
     Job,
     ProcessEvaluator,
     RayEvaluator,
@@ -46,10 +48,12 @@ __all__ = [
     "BACKENDS",
     "PRESETS",
     "CheckpointError",
+    "EvalLimits",
     "EvolutionConfig",
     "EvolutionConfigError",
     "EvolutionError",
     "EvolutionResult",
+    "Faults",
     "GenerationRecord",
     "Genome",
     "GenomeCompiler",
@@ -64,6 +68,7 @@ __all__ = [
     "SkillSet",
     "add_node",
     "change_start",
+    "check_fresh",
     "crossover",
     "delete_node",
     "draw_fsa",

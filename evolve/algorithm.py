@@ -32,24 +32,36 @@ import numpy as np
 from ruamel.yaml.comments import CommentedMap
 
 from skillcompose import FSA, dumps_fsa, load_fsa, loads_fsa
+from skillcompose.executor import trial_rngs
 from skillcompose.fsa import Source
 from skillcompose.task import Task
 
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
-from .evaluation import BACKENDS, Job, make_evaluator
+from .evaluation import (
+    BACKENDS,
+    TIMED_OUT,
+    EvalLimits,
+    Faults,
+    Guard,
+    Job,
+    evaluate_episode,
+    evaluate_job,
+    make_evaluator,
+)
 from .genome import Genome, GenomeCompiler, SkillSet
 from .operators import crossover, initialize, mutate
 from .resume import FREE_SETTINGS, MEANING, check_record, differences, normalise, run_record
 from .rundir import RunDir
 from .simplify import simplify
 
-__all__ = ["EvolutionResult", "GenerationRecord", "evolve"]
+__all__ = ["EvolutionResult", "GenerationRecord", "check_fresh", "evolve"]
 
 _PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 _BREED = 0
 _EVAL = 1
 _CONFIRM = 2
+_FRESH = 3
 
 
 @dataclass(frozen=True)
@@ -65,6 +77,7 @@ class GenerationRecord:
     total_evaluations: int
     evals_per_s: float
     wall_time: float  # seconds since the run started, across resumes
+    faults: dict[str, int] = field(default_factory=dict)  # Faults.to_dict() of the generation
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -89,6 +102,14 @@ class EvolutionResult:
     unchanged: bool = False  # a resumed run that had finished: nothing was done or written
     budget: int = 0  # the generation budget
     run_command: str = ""  # a command line that runs the exported FSA on its task
+    faults: Faults = field(default_factory=Faults)  # over the whole run
+    fresh: dict[str, Any] = field(default_factory=dict)  # see check_fresh (empty: not run)
+
+    @property
+    def nothing_succeeded(self) -> bool:
+        """Every evaluation of the run failed (raised in every episode, timed out, or killed
+        its worker): nothing was learnt about the task."""
+        return self.faults.jobs > 0 and self.faults.failed == self.faults.jobs
 
 
 def _nan_safe(f: float, minimize: bool) -> float:
@@ -146,6 +167,9 @@ class _Run:
         self.wall_before = 0.0
         self.next_uid = 0
         self.elite_fitness: dict[int, float] = {}
+        self.first_error: str | None = None  # the run's first exception, summarised
+        self.gen_faults = Faults()
+        self.fault_totals = Faults()  # over the run so far, for the progress line
         self.t0 = time.perf_counter()
 
     # -- checkpoint ------------------------------------------------------------------------
@@ -171,6 +195,7 @@ class _Run:
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
             "elite_fitness": [[uid, f] for uid, f in self.elite_fitness.items()],
+            "first_error": self.first_error,
             "exported": self.exported,
         }
 
@@ -200,6 +225,11 @@ class _Run:
             self.next_uid = _whole(st["next_uid"])
             self.elite_fitness = {_whole(uid): _number(f) for uid, f in st["elite_fitness"]}
             self.exported = bool(st.get("exported", False))
+            first_error = st.get("first_error")
+            if first_error is not None and not isinstance(first_error, str):
+                raise TypeError("first_error is not text")
+            self.first_error = first_error
+            self.fault_totals = self.faults()  # checks each generation's fault counts
         except CheckpointError:
             raise
         except (KeyError, TypeError, ValueError, IndexError, AttributeError,
@@ -275,6 +305,9 @@ class _Run:
 
         results = self.evaluator.evaluate(new_jobs(), expected=cfg.population)
         assert self.generation == g and len(fitness) == len(self.population)
+        self.gen_faults = self.evaluator.faults
+        if self.first_error is None and self.gen_faults.first_error is not None:
+            self.first_error = f"in generation {g}: {self.gen_faults.first_error}"
         episodes = sum(j.trials for j in jobs)
         for job, idx, f in zip(jobs, slots, results, strict=True):
             f = _nan_safe(float(f), self.task.minimize)
@@ -361,7 +394,9 @@ class _Run:
             total_evaluations=self.evaluations,
             evals_per_s=episodes / gen_time if gen_time > 0 else 0.0,
             wall_time=self.wall(),
+            faults=self.gen_faults.to_dict(),
         )
+        self.fault_totals.add(self.gen_faults)
         self.history.append(rec)
         if self.rundir is not None:
             self.rundir.append_history(rec.to_dict())
@@ -376,9 +411,11 @@ class _Run:
         that measured mean and evolution goes on."""
         assert self.best is not None
         g, _, gen = self.best
-        seq = np.random.SeedSequence(self.seed, spawn_key=(_CONFIRM, self.generation))
-        mean = self.task.evaluate(self.compiler.compile(g), seq, self.cfg.confirm_trials)
-        self.evaluations += self.cfg.confirm_trials
+        trials = 1 if self.task.deterministic else self.cfg.confirm_trials
+        job = Job.of(g, self.seed, (_CONFIRM, self.generation), trials)
+        with Guard(self.cfg.eval_time_limit) as guard:
+            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False)
+        self.evaluations += trials
         if self.task.solved(mean):
             return True
         self.best = (g, mean, gen)
@@ -422,10 +459,24 @@ class _Run:
             "`--seed-fsa FILE`."
         )
 
+    def faults(self) -> Faults:
+        """The run's faults so far, from its history."""
+        total = Faults()
+        for r in self.history:
+            if not isinstance(r.faults, dict):
+                raise TypeError("a generation's faults are not an object")
+            gen = Faults()
+            for k, v in r.faults.items():
+                if k in _FAULT_FIELDS:
+                    setattr(gen, k, _whole(v))
+            total.add(gen)
+        total.first_error = self.first_error
+        return total
+
     def show_progress(self, rec: GenerationRecord, final: bool = False) -> None:
         """What is known: generations done (of the budget), their rate, the best fitness and
-        size, evaluations/s. No time to the end: a run stops when it solves the task, which
-        nobody can foresee (the budget only bounds it)."""
+        size, evaluations/s, and the faults so far. No time to the end: a run stops when it
+        solves the task, which nobody can foresee (the budget only bounds it)."""
         if self.progress is None or (final and self._last_line == rec.wall_time):
             return
         from tqdm import tqdm
@@ -434,6 +485,9 @@ class _Run:
         so_far = self.best[1] if self.best is not None else rec.best
         postfix = (f"best {so_far:.4g} (this generation {rec.best:.4g}, size "
                    f"{rec.best_size}), {rec.evals_per_s:,.0f} evals/s")
+        faults = self.fault_totals.describe()
+        if faults:
+            postfix += f", faults: {faults}"
         desc = f"gen {rec.generation}/{self.cfg.generations}"
         if getattr(self.progress, "isatty", lambda: False)():
             if self._bar is None:
@@ -533,6 +587,47 @@ class _SeedNames:
         return named.replace(source=Source(None, {}, doc))
 
 
+_FAULT_FIELDS = frozenset(Faults().to_dict())
+
+
+def check_fresh(
+    task: Task, fsa: FSA, seed: int, trials: int, time_limit: float | None = None
+) -> dict[str, Any]:
+    """How ``fsa`` does on ``trials`` fresh episodes (worlds from ``SeedSequence(seed,
+    spawn_key=(3,))``, never seen during evolution or simplification): the share that
+    reach the task's target, the mean fitness, and the episodes that raised or ran past
+    ``time_limit`` [s] (each scores worst)."""
+    compiled = task.compile(fsa)
+    scores: list[float] = []
+    raised = timeouts = 0
+    seq = np.random.SeedSequence(seed, spawn_key=(_FRESH,))
+    with Guard(time_limit) as guard:
+        for rng in trial_rngs(seq, trials):
+            f, code = evaluate_episode(task, compiled, rng, guard)
+            raised += code >> 2
+            timeouts += code & TIMED_OUT
+            scores.append(f)
+    n = len(scores)
+    return {
+        "episodes": n,
+        "success_rate": sum(map(task.solved, scores)) / n if n else 0.0,
+        "mean_fitness": float(statistics.fmean(scores)) if n else math.nan,
+        "raised": raised,
+        "timeouts": timeouts,
+        "seed": seed,
+    }
+
+
+def fresh_differs(task: Task, evolved: float, fresh: float) -> bool:
+    """Whether the fitness on fresh episodes tells another story than the evolved one: the
+    task counts one as solved and not the other, or they differ by more than 10 %."""
+    if task.solved(evolved) != task.solved(fresh):
+        return True
+    if math.isinf(evolved) or math.isinf(fresh) or math.isnan(fresh):
+        return evolved != fresh
+    return abs(fresh - evolved) > 0.1 * max(abs(fresh), abs(evolved))
+
+
 def evolve(
     task: Task,
     cfg: EvolutionConfig | None = None,
@@ -546,6 +641,7 @@ def evolve(
     resume: str | os.PathLike[str] | None = None,
     simplify_result: bool | None = None,
     simplify_trials: int | None = None,
+    check_trials: int | None = None,
     on_generation: Callable[[GenerationRecord], None] | None = None,
 ) -> EvolutionResult:
     """Evolve an FSA for ``task`` (algorithm 1), stopping when solved or out of generations.
@@ -555,17 +651,22 @@ def evolve(
       ``"ray"``; the result does not depend on it.
     - ``out_dir``: write the run directory (see :mod:`evolve.rundir`) as the run goes.
     - ``resume``: a run directory to continue from its last checkpoint (see
-      :mod:`evolve.resume`). ``task`` must be the run's task; the seed, the settings and the
-      simplification are the run's. ``cfg``, when given, may differ from the run's only in
-      ``generations`` (to extend a run: the result is the run an uninterrupted run to that
-      budget would have given), ``checkpoint_every`` and ``chunks_per_worker``. A finished
+      :mod:`evolve.resume`). ``task`` must be the run's task; the seed, the settings, the
+      simplification and the fresh-episode check are the run's. ``cfg``, when given, may
+      differ from the run's only in ``generations`` (to extend a run: the result is the run
+      an uninterrupted run to that budget would have given), ``checkpoint_every``,
+      ``chunks_per_worker``, ``worker_max_jobs`` and ``worker_max_growth_mb``. A finished
       run is not touched (``result.unchanged``).
     - ``seed_fsa``: an FSA (or file) placed in the first population, the rest random; the
       states that survive evolution keep their names (and, from a file, their comments).
     - ``simplify_result``: simplify the best FSA at the end (default on) with
       ``simplify_trials`` fresh trials (default 200; see :func:`evolve.simplify`).
+    - ``check_trials``: fresh episodes on which the exported FSA is measured at the end
+      (default 200; :func:`check_fresh`; ``result.fresh``, ``run.json``); 0 skips it. A
+      deterministic task (``Task.deterministic``) uses one trial for evaluations,
+      simplification and this check.
     - ``progress``: progress on stderr (or on the given stream): a live line on a
-      terminal, a line every 5 s otherwise.
+      terminal, a line every 5 s otherwise; both show the faults so far.
     """
     if backend not in BACKENDS:
         raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
@@ -580,18 +681,19 @@ def evolve(
         try:
             checkpoint = rundir.load_checkpoint()
             record, cfg = _resumed(task, cfg, rundir, checkpoint, simplify_result,
-                                   simplify_trials)
+                                   simplify_trials, check_trials)
         except BaseException:
             rundir.unlock()
             raise
         seed = record["seed"]
         simplify_result, simplify_trials = record["simplify"], record["simplify_trials"]
+        check_trials = record["check_trials"]
     elif out_dir is not None:
         rundir = RunDir(out_dir)  # created (and locked) once the run's record is known
     try:
         return _evolve(task, cfg, seed, workers, backend, seed_fsa, progress,
                        rundir, checkpoint, record, simplify_result, simplify_trials,
-                       on_generation)
+                       check_trials, on_generation)
     finally:
         if rundir is not None:
             rundir.unlock()
@@ -599,7 +701,7 @@ def evolve(
 
 def _resumed(
     task: Task, cfg: EvolutionConfig | None, rundir: RunDir, checkpoint: Mapping[str, Any],
-    simplify_result: bool | None, simplify_trials: int | None,
+    simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
 ) -> tuple[dict[str, Any], EvolutionConfig]:
     """The run's record and settings, checked against ``run.json`` and what was given."""
     where = str(rundir.checkpoint)
@@ -621,6 +723,8 @@ def _resumed(
         given["simplify"] = simplify_result
     if simplify_trials is not None:
         given["simplify_trials"] = simplify_trials
+    if check_trials is not None:
+        given["check_trials"] = check_trials
     problems = differences(record, given)
     if cfg is not None:
         mine = recorded_cfg.to_dict()
@@ -631,7 +735,7 @@ def _resumed(
         raise CheckpointError(
             f"{rundir.path}: resuming with {'; '.join(problems)} would change the run; leave "
             "them out (a resume may change only the generation budget, the backend, the "
-            "workers and how often it checkpoints)"
+            "workers, when workers are replaced and how often it checkpoints)"
         )
     return record, recorded_cfg
 
@@ -640,7 +744,7 @@ def _evolve(
     task: Task, cfg: EvolutionConfig | None, seed: int | None, workers: int | None,
     backend: str, seed_fsa: FSA | str | os.PathLike[str] | None, progress: bool | TextIO,
     rundir: RunDir | None, checkpoint: dict[str, Any] | None, record: dict[str, Any] | None,
-    simplify_result: bool | None, simplify_trials: int | None,
+    simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
     on_generation: Callable[[GenerationRecord], None] | None,
 ) -> EvolutionResult:
     cfg = cfg or EvolutionConfig()
@@ -650,6 +754,9 @@ def _evolve(
             simplify_trials < 1:
         raise EvolutionError(f"simplify_trials must be a whole number >= 1, got "
                              f"{simplify_trials!r}")
+    check_trials = 200 if check_trials is None else check_trials
+    if isinstance(check_trials, bool) or not isinstance(check_trials, int) or check_trials < 0:
+        raise EvolutionError(f"check_trials must be a whole number >= 0, got {check_trials!r}")
     if seed is None:
         seed = int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> 1)
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
@@ -657,6 +764,12 @@ def _evolve(
     seed = int(seed)
     skills = SkillSet.from_task(task)
     trials = cfg.trials or task.trials
+    # the run records the trials asked for; a deterministic task uses one: every episode is
+    # the same, one says it all
+    simplify_used, check_used = simplify_trials, check_trials
+    if task.deterministic:
+        trials = 1
+        simplify_used, check_used = min(simplify_used, 1), min(check_used, 1)
     stream: TextIO | None = sys.stderr if progress is True else (progress or None)
     if backend == "process" and workers is None:
         workers = os.cpu_count() or 1
@@ -680,7 +793,8 @@ def _evolve(
     if seed_source is not None:
         seed_genome = Genome.from_fsa(seed_source, skills, seed_path or seed_source.path or "")
     if record is None:
-        record = run_record(task, seed, cfg, seed_path, simplify_result, simplify_trials)
+        record = run_record(task, seed, cfg, seed_path, simplify_result, simplify_trials,
+                            check_trials)
     else:
         record = {**record, "config": cfg.to_dict()}  # a resume may extend the budget
     info = {**record, "backend": backend, "workers": workers}
@@ -732,7 +846,9 @@ def _evolve(
 
     solved = run.best is not None and task.solved(run.best[1])
     if not solved and (fitness is None or run.generation < cfg.generations):
-        run.evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker)
+        limits = EvalLimits(cfg.eval_time_limit, cfg.worker_max_jobs, cfg.worker_max_growth_mb)
+        run.evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker,
+                                       limits)
         try:
             while not solved and (fitness is None or run.generation < cfg.generations):
                 children = run.breed(fitness, bred) if fitness is not None else None
@@ -756,17 +872,32 @@ def _evolve(
     evolved = run.best_fsa()
     best = evolved
     if simplify_result:
-        best = simplify(task, evolved, seed=seed, trials=simplify_trials)
+        best = simplify(task, evolved, seed=seed, trials=simplify_used,
+                        time_limit=cfg.eval_time_limit)
         best = best.replace(meta={**evolved.meta, **best.meta}, name=evolved.name)
     evolved, best = run.named(evolved), run.named(best)
+    fresh: dict[str, Any] = {}
+    if check_used > 0:
+        fresh = check_fresh(task, best, seed, check_used, cfg.eval_time_limit)
+        fresh["differs"] = fresh_differs(task, best_f, fresh["mean_fitness"])
+    faults = run.faults()
     files: list[Path] = []
     if rundir is not None:
         rundir.write_best(evolved, task.registry, run.header(), rundir.best_evolved_yaml)
         rundir.write_best(best, task.registry, run.header())
         rundir.plots([r.to_dict() for r in run.history], best)
-        run.exported = True
+        rundir.update_run_info({"result": {
+            "solved": task.solved(best_f),
+            "best_fitness": best_f,
+            "generations": run.generation,
+            "evaluations": run.evaluations,
+            "fresh": fresh,
+            "faults": faults.to_dict(),
+            "first_error": faults.first_error,
+        }})
+        run.exported = True  # last: a kill before this redoes only the exports
         rundir.save_checkpoint({**run.state(fitness), "seed_fsa_text": seed_text,
-                                "best_yaml": dumps_fsa(best, task.registry)})
+                                "best_yaml": dumps_fsa(best, task.registry), "fresh": fresh})
         files = [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
                  rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
     return EvolutionResult(
@@ -784,6 +915,8 @@ def _evolve(
         files=files,
         budget=cfg.generations,
         run_command=run_command(str(rundir.best_yaml) if rundir else "FILE", record),
+        faults=faults,
+        fresh=fresh,
     )
 
 
@@ -793,6 +926,7 @@ def _unchanged(run: _Run, checkpoint: Mapping[str, Any], rundir: RunDir) -> Evol
     text = checkpoint.get("best_yaml")
     evolved = run.named(run.best_fsa())
     best = loads_fsa(text, str(rundir.checkpoint)) if isinstance(text, str) else evolved
+    fresh = checkpoint.get("fresh")
     g, f, _ = run.best
     return EvolutionResult(
         best_fsa=best, best_fitness=f, solved=run.task.solved(f), generations=run.generation,
@@ -800,4 +934,5 @@ def _unchanged(run: _Run, checkpoint: Mapping[str, Any], rundir: RunDir) -> Evol
         evolved_fsa=evolved, best_genome=g, seed=run.seed, out_dir=rundir.path, files=[],
         unchanged=True, budget=run.cfg.generations,
         run_command=run_command(str(rundir.best_yaml), run.record_info),
+        faults=run.faults(), fresh=fresh if isinstance(fresh, dict) else {},
     )

@@ -32,12 +32,13 @@ examples:
 
 A resumed run is the run it would have been without the interruption. It keeps its task,
 seed and settings: giving others is refused; only --generations (to extend it), --backend,
---workers, --checkpoint-every and --quiet may change. A finished run is left as it is.
+--workers, --worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet may
+change. A finished run is left as it is.
 """
 
 # options whose absence matters on --resume: None until given (a new run's defaults: seed 0,
-# preset paper, 200 simplification trials)
-_UNSET_UNTIL_GIVEN = ("seed", "preset", "simplify_trials")
+# preset paper, 200 simplification trials, 200 fresh episodes checked)
+_UNSET_UNTIL_GIVEN = ("seed", "preset", "simplify_trials", "check_trials")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -87,6 +88,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="export the best FSA as evolved, without simplification")
     p.add_argument("--simplify-trials", type=int, default=200,
                    help="fresh trials per simplification test (default 200)")
+    p.add_argument("--check-trials", type=int, default=200,
+                   help="fresh episodes on which the exported FSA is measured at the end "
+                   "(default 200; 0: none)")
+    p.add_argument("--eval-time-limit", type=float, metavar="SECONDS",
+                   help="wall-clock limit of one evaluation; past it, it scores worst and "
+                   "counts as a time-out (default 60; 0: no limit)")
+    p.add_argument("--worker-max-jobs", type=int, metavar="N",
+                   help="replace a worker after N evaluations (default 0: never)")
+    p.add_argument("--worker-max-growth-mb", type=float, metavar="MB",
+                   help="replace a worker whose memory grew by more than MB (default 1024; "
+                   "0: never)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -102,6 +114,8 @@ _SETTING_OPTIONS = (
     ("tournament", "tournament"), ("param_sigma", "param_sigma"),
     ("confirm_trials", "confirm_trials"),
     ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
+    ("worker_max_jobs", "worker_max_jobs"),
+    ("worker_max_growth_mb", "worker_max_growth_mb"),
 )
 
 
@@ -112,6 +126,8 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
         v = getattr(args, opt)
         if v is not None:
             changes[name] = v
+    if args.eval_time_limit is not None:
+        changes["eval_time_limit"] = args.eval_time_limit or None
     if args.crn:
         changes["common_random_numbers"] = True
     if args.cache:
@@ -147,14 +163,28 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         problems.append("--no-simplify (the run simplifies its result)")
     if args.simplify_trials is not None:
         differs("--simplify-trials", args.simplify_trials, record["simplify_trials"])
+    if args.check_trials is not None:
+        differs("--check-trials", args.check_trials, record["check_trials"])
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
     flags = {name: opt for opt, name in _SETTING_OPTIONS}
-    flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony")
+    flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
+                 eval_time_limit="eval_time_limit")
     for name, value in _given_settings(args).items():
-        if name not in FREE_SETTINGS:
-            differs("--" + flags[name].replace("_", "-"), value, cfg.get(name))
+        if name in FREE_SETTINGS:
+            continue
+        if name == "eval_time_limit":  # None is `--eval-time-limit 0`: no limit
+            if normalise(value) != normalise(cfg.get(name)):
+                problems.append(f"--eval-time-limit {args.eval_time_limit:g} (the run has "
+                                f"{_limit_text(cfg.get(name))})")
+            continue
+        differs("--" + flags[name].replace("_", "-"), value, cfg.get(name))
     return problems
+
+
+def _limit_text(limit: Any) -> str:
+    return "no limit" if limit is None else f"{limit:g} s" if isinstance(limit, (int, float)) \
+        else str(limit)
 
 
 def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
@@ -168,7 +198,7 @@ def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
         raise EvolutionError(
             f"--resume {args.resume}: {'; '.join(problems)} would change the run; leave them "
             "out (a resume may change only --generations, --backend, --workers, "
-            "--checkpoint-every and --quiet)"
+            "--worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet)"
         )
     return load_recorded_task(record, args.resume), record
 
@@ -187,7 +217,7 @@ def handle(args: argparse.Namespace) -> int:
             if isinstance(workers, bool) or not isinstance(workers, int) or \
                     not 1 <= workers <= (os.cpu_count() or 1):
                 workers = None  # run.json is data from elsewhere: all cores at most
-            seed, simplify_result, simplify_trials = None, None, None
+            seed, simplify_result, simplify_trials, check_trials = None, None, None, None
         else:
             if not args.task:
                 raise EvolutionError(
@@ -202,12 +232,14 @@ def handle(args: argparse.Namespace) -> int:
             seed = 0 if args.seed is None else args.seed
             simplify_result = not args.no_simplify
             simplify_trials = 200 if args.simplify_trials is None else args.simplify_trials
+            check_trials = 200 if args.check_trials is None else args.check_trials
         result = evolve(
             task, cfg, seed=seed, workers=workers, backend=backend,
             out_dir=None if args.resume else args.out,
             seed_fsa=None if args.resume else args.seed_fsa,
             progress=not args.quiet, resume=args.resume,
             simplify_result=simplify_result, simplify_trials=simplify_trials,
+            check_trials=check_trials,
         )
     except SkillcomposeError as exc:
         print(f"skillcompose evolve: error: {exc}", file=sys.stderr)
@@ -230,11 +262,38 @@ def handle(args: argparse.Namespace) -> int:
         f"{result.wall_time:.1f} s; best FSA has {len(result.best_fsa.states)} states "
         f"(evolved: {len(result.evolved_fsa.states)})"
     )
+    fresh = result.fresh
+    if fresh:
+        print(
+            f"the exported FSA on {fresh['episodes']} fresh episodes: "
+            f"{100 * fresh['success_rate']:.1f} % reach the target, mean fitness "
+            f"{fresh['mean_fitness']:g}"
+        )
+        if fresh["differs"]:
+            print(
+                f"warning: that differs from the evolved fitness {result.best_fitness:g}: "
+                "evolution measured it on its own few episodes; trust the fresh ones "
+                "(more trials per evaluation, --preset robust or --confirm N evolve FSAs "
+                "that hold)", file=sys.stderr,
+            )
+    faults = result.faults
+    if faults.total:
+        print(f"faults: {faults.describe()} in {faults.jobs} evaluations "
+              f"({faults.failed} failed entirely); per generation in history.jsonl",
+              file=sys.stderr)
+        if faults.first_error:
+            print(f"first error {faults.first_error}", file=sys.stderr)
     if result.files:
         print("files written:")
         for f in result.files:
             print(f"  {f}")
         print(f"run it: {result.run_command}")
+    if result.nothing_succeeded:
+        print(
+            f"skillcompose evolve: error: every one of the {faults.jobs} evaluations failed "
+            "(see the first error above); fix the task or its skills", file=sys.stderr,
+        )
+        return 1
     return 0
 
 

@@ -55,6 +55,17 @@ class EvolutionConfig:
       too (otherwise its fitness becomes that mean and evolution goes on). Guards against a
       lucky solve on few trials.
 
+    Faults and limits (see docs/evolve.md, "Faults and limits"):
+
+    - ``eval_time_limit``: wall-clock seconds one evaluation (all its trials) may take; past
+      it the evaluation scores the task's worst fitness and counts as a time-out. ``None``:
+      no limit. Set it well above a normal evaluation's time, so that only a hanging skill
+      reaches it and the run stays the same on every machine.
+    - ``worker_max_jobs``: a pool worker (or Ray actor) is replaced by a fresh one after this
+      many evaluations (0: never); ``worker_max_growth_mb``: ... or once its resident memory
+      has grown by more than this many MB since it started (0: never). Replacing a worker
+      never changes results.
+
     Run bookkeeping: ``checkpoint_every`` generations between checkpoints of a run directory,
     ``terminal_weight`` the weight of each terminal outcome against one state when an edge
     target is drawn at random (see docs/evolve.md), ``chunks_per_worker`` how many
@@ -81,6 +92,9 @@ class EvolutionConfig:
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 4
+    eval_time_limit: float | None = 60.0
+    worker_max_jobs: int = 0
+    worker_max_growth_mb: float = 1024.0
 
     def __post_init__(self) -> None:
         problems: list[str] = []
@@ -113,6 +127,19 @@ class EvolutionConfig:
         if not isinstance(self.terminal_weight, (int, float)) or self.terminal_weight < 0:
             problems.append(
                 f"terminal_weight = {self.terminal_weight!r}: expected a number >= 0"
+            )
+        limit = self.eval_time_limit
+        if limit is not None and (
+            isinstance(limit, bool) or not isinstance(limit, (int, float)) or not limit > 0
+        ):
+            problems.append(
+                f"eval_time_limit = {limit!r}: expected seconds > 0, or None for no limit"
+            )
+        whole("worker_max_jobs", 0)
+        growth = self.worker_max_growth_mb
+        if isinstance(growth, bool) or not isinstance(growth, (int, float)) or growth < 0:
+            problems.append(
+                f"worker_max_growth_mb = {growth!r}: expected MB >= 0 (0: no limit)"
             )
         if isinstance(self.elitism, int) and isinstance(self.population, int) and \
                 self.elitism >= self.population:

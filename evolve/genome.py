@@ -23,6 +23,7 @@ from typing import Any
 
 from skillcompose import FSA, CompiledFSA, ParamSpec, State
 from skillcompose.blackboard import Access
+from skillcompose.fsa import RESERVED_OUTCOMES
 from skillcompose.task import Task
 
 from .errors import SeedFSAError
@@ -85,7 +86,17 @@ class SkillSet:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
 
     @classmethod
-    def from_task(cls, task: Task, terminals: tuple[str, ...] = ("success", "failure")) -> SkillSet:
+    def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None) -> SkillSet:
+        """The task's skills; ``terminals`` default to the task's own (``Task.terminals``)."""
+        terminals = tuple(task.terminals if terminals is None else terminals)
+        bad = [t for t in terminals if not isinstance(t, str) or not t.isidentifier()
+               or t in RESERVED_OUTCOMES]
+        if not terminals or bad:
+            raise SeedFSAError(
+                f"task {task.name}: terminals {list(terminals)} must be one or more names "
+                f"(identifiers) other than {list(RESERVED_OUTCOMES)}; e.g. "
+                "terminals=('success', 'failure')"
+            )
         choices = []
         enders = task.terminal_skills
         codes = {t: -(k + 1) for k, t in enumerate(terminals)}

@@ -1,9 +1,9 @@
 """Continuing a run from its directory, which may come from someone else.
 
 What a run *means* is recorded when it starts (:func:`run_record`): the task (its name, the
-module that makes it and the settings), the seed, the evolution settings, the seed FSA and
-the simplification. The checkpoint holds that record under its checksum; ``run.json``
-shows it to people. On ``--resume``:
+module that makes it and the settings), the seed, the evolution settings (the per-evaluation
+time limit among them), the seed FSA, the simplification and the fresh-episode check. The
+checkpoint holds that record under its checksum; ``run.json`` shows it to people. On ``--resume``:
 
 - the checkpoint is read as data only (JSON, never a pickle) and its checksum checked;
 - ``run.json`` must say what the checkpoint says (an edited ``run.json``, say another
@@ -11,8 +11,8 @@ shows it to people. On ``--resume``:
 - the task is imported only by the module name recorded at the start, and never from a
   file inside the run directory (a directory received from someone else could carry one);
 - settings given again must equal the recorded ones: only the generation budget may grow
-  (extending the run), and how it is evaluated (backend, workers) and checkpointed may
-  change, as none of them changes the result.
+  (extending the run), and how it is evaluated (backend, workers, when workers are
+  replaced) and checkpointed may change, as none of them changes the result.
 """
 
 from __future__ import annotations
@@ -41,12 +41,15 @@ __all__ = [
 ]
 
 MEANING = ("task", "task_module", "task_settings", "seed", "seed_fsa", "config", "simplify",
-           "simplify_trials")
+           "simplify_trials", "check_trials")
 """The keys of a run record that make the run what it is."""
 
-FREE_SETTINGS = ("generations", "checkpoint_every", "chunks_per_worker")
+FREE_SETTINGS = ("generations", "checkpoint_every", "chunks_per_worker", "worker_max_jobs",
+                 "worker_max_growth_mb")
 """Evolution settings a resume may change: the budget (a longer run is the same run, only
-longer) and bookkeeping that does not change the result."""
+longer) and bookkeeping that does not change the result (checkpoints, chunking, replacing
+pool workers and Ray actors). ``eval_time_limit`` is not among them: which evaluations
+time out, and so score worst, depends on it."""
 
 
 def normalise(value: Any) -> Any:
@@ -56,7 +59,7 @@ def normalise(value: Any) -> Any:
 
 def run_record(
     task: Task, seed: int, cfg: EvolutionConfig, seed_fsa: str | None, simplify: bool,
-    simplify_trials: int,
+    simplify_trials: int, check_trials: int,
 ) -> dict[str, Any]:
     """What a run means, as plain JSON data."""
     module = task.ref.module if task.ref else None
@@ -71,6 +74,7 @@ def run_record(
         "config": cfg.to_dict(),
         "simplify": simplify,
         "simplify_trials": simplify_trials,
+        "check_trials": check_trials,
     })
 
 
@@ -109,6 +113,9 @@ def check_record(record: Any, where: str) -> dict[str, Any]:
     st = record["simplify_trials"]
     if isinstance(st, bool) or not isinstance(st, int) or st < 1:
         raise _fail(where, "simplify_trials", st, "a whole number >= 1")
+    ct = record["check_trials"]
+    if isinstance(ct, bool) or not isinstance(ct, int) or ct < 0:
+        raise _fail(where, "check_trials", ct, "a whole number >= 0")
     if not isinstance(record["config"], dict):
         raise _fail(where, "config", record["config"], "an object of evolution settings")
     try:

@@ -130,6 +130,12 @@ class RunDir:
     def write_run_info(self, run_info: Mapping[str, Any]) -> None:
         _atomic_write(self.run_json, (json.dumps(run_info, indent=2) + "\n").encode())
 
+    def update_run_info(self, changes: Mapping[str, Any]) -> None:
+        """Add or replace top-level entries of ``run.json`` (the result, at the end)."""
+        info = self.load_run_info()
+        info.update(changes)
+        _atomic_write(self.run_json, (json.dumps(info, indent=2, default=str) + "\n").encode())
+
     def append_history(self, record: Mapping[str, Any]) -> None:
         with self.history.open("a", encoding="utf-8") as f:
             f.write(json.dumps(record) + "\n")

@@ -19,7 +19,7 @@ import numpy as np
 
 from .blackboard import DELETED, Blackboard
 from .errors import SkillcomposeError
-from .executor import compile_fsa, summarize, trial_rngs
+from .executor import compile_fsa, error_summary, summarize, trial_rngs
 from .fsafile import load_fsa
 from .progress import progress_bar
 from .registry import Registry
@@ -148,10 +148,14 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
     if args.trials < 1:
         raise SkillcomposeError(f"--trials must be at least 1, got {args.trials}")
-    try:
-        compiled = compile_fsa(fsa, registry, args.backend)
+    try:  # with a task, the task's step limit (as in evolution); else the file's
+        compiled = task.compile(fsa, args.backend) if task is not None else \
+            compile_fsa(fsa, registry, args.backend)
     except SkillcomposeError as exc:
         raise SkillcomposeError(str(exc)) from None
+    if task is not None and fsa.step_limit != task.step_limit:
+        print(f"{args.file}: step limit {task.step_limit} from task {task.name} (the file's "
+              f"{fsa.step_limit} applies when it runs without --task)", file=sys.stderr)
     results = []
     fitness: list[float] = []
     bar = progress_bar(args.trials, "run")  # on a terminal, once it takes a while
@@ -178,15 +182,20 @@ def cmd_run(args: argparse.Namespace) -> int:
         arr = np.asarray(fitness)
         print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
               f"({'lower' if task.minimize else 'higher'} is better)")
-    errors = [r for r in results if r.error is not None]
+    errors = [(k, r) for k, r in enumerate(results) if r.error is not None]
     if errors and not args.trace:
-        first = errors[0]
+        k, first = errors[0]
+        assert first.error is not None
         print(
-            f"  {len(errors)} run(s) ended in error; first in state {first.last_state}: "
-            f"{type(first.error).__name__}: {first.error}. Rerun with --trace (and "
-            "--trials 1 --seed of that run) for the traceback",
+            f"  {len(errors)} run(s) ended in error; the first (run {k}) in state "
+            f"{first.last_state}: {error_summary(first.error)}\n"
+            "  rerun with --trace for the whole traceback",
             file=sys.stderr,
         )
+    if len(errors) == len(results):
+        print(f"skillcompose run: error: every run of {args.file} ended in error",
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -21,8 +21,8 @@ How it runs:
 - Repetition ``r`` uses the generator of ``SeedSequence(seed).spawn(reps)[r]`` at *every*
   point (common random numbers): the curve is smooth, a point's numbers do not depend on
   which other points are swept, and the table is identical for any number of workers.
-- The FSA runs with its own ``step_limit`` (what the file says is what is swept) unless
-  ``step_limit`` is given.
+- The FSA runs with the task's ``step_limit`` (as in evolution and ``skillcompose run
+  --task``; the file's own applies only without a task) unless ``step_limit`` is given.
 - ``std`` is the sample standard deviation (``ddof=1``) of the fitness over the repetitions.
 """
 
@@ -148,7 +148,7 @@ def robustness_sweep(
     compile_fsa(machine, first.registry, backend or first.backend)
 
     jobs = [
-        _Chunk(machine, ref, setting, v, backend, seed, start, stop)
+        _Chunk(machine, ref, setting, v, backend, seed, start, stop, step_limit is None)
         for v in values
         for start, stop in _chunks(reps, workers, len(values))
     ]
@@ -201,12 +201,14 @@ class _Chunk:
     seed: int
     start: int
     stop: int
+    task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
 
 
 def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
     task = _build(job.ref, job.setting, job.value)
-    compiled = compile_fsa(job.fsa, task.registry, job.backend or task.backend)
+    compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
+        compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
     fit = np.empty(n)
     steps = np.empty(n, dtype=np.int64)
@@ -409,7 +411,7 @@ def register_cli(subparsers: Any) -> None:
                    dest="settings", help="another task setting, kept fixed; repeatable")
     p.add_argument("--backend", help="which implementation of each skill to run")
     p.add_argument("--step-limit", type=int,
-                   help="override the FSA file's step_limit")
+                   help="steps after which a run ends in timeout (default: the task's)")
     p.set_defaults(func=cmd_robustness)
 
 

@@ -275,7 +275,7 @@ def test_a_stream_longer_than_the_shared_memory_is_evaluated_whole() -> None:
     ev = ProcessEvaluator(task, skills, workers=2)
     try:
         assert ev.evaluate(j for j in jobs) == expected
-        assert len(ev._results) >= len(jobs)  # it grew twice, from 1024
+        assert len(ev._shared.results) >= len(jobs)  # it grew twice, from 1024
         assert ev.evaluate(jobs[:10]) == expected[:10]
     finally:
         ev.close()
