@@ -56,7 +56,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="starting settings: paper (table 1, the default), robust (our best "
                    "options: N=600, 3 shared trials, elitism 2, tournament 3, S=12, sigma "
                    "0.1, solutions confirmed on 20 fresh trials) or push (for many "
-                   "parameters, e.g. a network's weights: N=300, the task's shared trials, "
+                   "parameters, e.g. a network's weights: N=150, 20 shared trials, "
                    "every mutated node's parameters perturbed, confirmed on 200 fresh "
                    "trials); the flags below override it")
     p.add_argument("--tournament", type=int, help="tournament size (default 2)")

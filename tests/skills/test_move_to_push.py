@@ -220,7 +220,7 @@ def test_a_short_evolution_improves_the_push() -> None:
 
     task = load_task("examples.move_to_push", trials=5)
     cfg = EvolutionConfig(**{**PRESETS["push"], "population": 60, "generations": 30,
-                             "confirm_trials": 20})
+                             "trials": 5, "confirm_trials": 20})
     result = evolve(task, cfg, seed=1, workers=1, backend="serial")
     first = result.history[0].best
     best = max(h.best for h in result.history)
