@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from skillcompose import FSA, CompiledFSA, ParamSpec, State
+from skillcompose import FSA, CompiledFSA, ParamSpec, Skill, State
 from skillcompose.blackboard import Access
 from skillcompose.fsa import RESERVED_OUTCOMES
 from skillcompose.task import Task
@@ -407,11 +407,13 @@ class GenomeCompiler:
         self.skills = skills
         self.backend = task.backend or reg.backend
         self.step_limit = step_limit if step_limit is not None else task.step_limit
+        self._impls: list[Skill] = []  # for tick-wise runs (long-running skills, limits)
         self._fns: list[Callable[..., str]] = []
         self._access: list[Access] = []
         self._key_types: dict[str, Any] = {}
         for c in skills.choices:
             impl = reg.resolve(c.name, self.backend)
+            self._impls.append(impl)
             self._fns.append(impl.bind(reg, self.backend))
             self._access.append(impl.spec.access())
             for k, t in impl.spec.key_types.items():
@@ -446,4 +448,7 @@ class GenomeCompiler:
                 for o, t in zip(c.outcomes, n.edges, strict=True)
             })
         fsa = FSA.trusted(states, names[0], terminals, self.step_limit)  # valid by construction
-        return CompiledFSA(fsa, table, names, skill_names, self._key_types, self.backend)
+        impls = [(self._impls[g.nodes[k].skill], states[names[i]].params)
+                 for i, k in enumerate(order)]
+        return CompiledFSA(fsa, table, names, skill_names, self._key_types, self.backend,
+                           impls)

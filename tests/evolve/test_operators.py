@@ -270,3 +270,17 @@ def test_a_node_mutation_that_strands_the_start_moves_it(toy_skills: SkillSet) -
         assert _start_leads_on(g) or not _has_candidate(g), (seed, ops, g.nodes)
         assert len(g) >= 2 or not _has_candidate(g)
     assert stranded > 5  # the case happened
+
+
+def test_genome_compiled_programs_also_run_tick_by_tick(toy: Task, toy_skills: SkillSet) -> None:
+    """A compiled genome is a whole CompiledFSA: its tick-wise run (used for long-running
+    skills and time limits) gives the run-to-completion result. It used to raise in zip()."""
+    compiler = GenomeCompiler(toy, toy_skills)
+    for seed in range(10):
+        g, _ = _random(toy_skills, seed, 15, 1.0)
+        compiled = compiler.compile(g)
+        for trial in range(3):
+            rng_a, rng_b = np.random.default_rng(trial), np.random.default_rng(trial)
+            a = compiled.run(toy.setup(rng_a), rng_a)
+            b = compiled.start(toy.setup(rng_b), rng_b).run()
+            assert (a.outcome, a.steps, a.last_state) == (b.outcome, b.steps, b.last_state)
