@@ -448,7 +448,7 @@ class GenomeCompiler:
                 for o, t in zip(c.outcomes, n.edges, strict=True)
             })
         fsa = FSA.trusted(states, names[0], terminals, self.step_limit)  # valid by construction
-        impls = [(self._impls[g.nodes[k].skill], states[names[i]].params)
+        impls = [(self._impls[g.nodes[k].skill], dict(states[names[i]].params))
                  for i, k in enumerate(order)]
         return CompiledFSA(fsa, table, names, skill_names, self._key_types, self.backend,
                            impls)
