@@ -122,7 +122,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     traceback unless ``--traceback``, or ``run --trace`` / ``--propagate``, asks for one.
     """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2), already printed
+        return exc.code if isinstance(exc.code, int) else 2
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
