@@ -29,10 +29,11 @@ Loading accepts plain YAML 1.2 data only: no anchors, aliases or merge keys, and
 the core ones (``!!str``, ``!!int``, ``!!float``, ``!!bool``, ``!!null`` on single values,
 ``!!seq`` and ``!!map``), whose values are checked. A file costs little whatever it holds: at
 most :data:`MAX_FILE_BYTES`, nested at most :data:`MAX_DEPTH` levels, at most
-:data:`MAX_STATES` states, whole numbers within 64 bits, floats finite unless written
-``.inf``/``.nan``, ``step_limit`` at most :data:`~skillcompose.fsa.MAX_STEP_LIMIT`. The text is
-parsed once; every problem is reported with its file, line and column, the state and key,
-what was expected and the fix (the first 20, then a count of the rest).
+:data:`MAX_VALUES` values and :data:`MAX_STATES` states, whole numbers within 64 bits, floats
+finite unless written ``.inf``/``.nan``, ``step_limit`` at most
+:data:`~skillcompose.fsa.MAX_STEP_LIMIT`. The text is parsed once; every problem is reported
+with its file, line and column, the state and key, what was expected and the fix (the first
+20, then a count of the rest).
 """
 
 from __future__ import annotations
@@ -73,6 +74,7 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_FILE_BYTES",
     "MAX_STATES",
+    "MAX_VALUES",
     "STATE_KEYS",
     "TOP_LEVEL_KEYS",
     "dumps_fsa",
@@ -93,6 +95,8 @@ MAX_DEPTH = 32
 """The deepest nesting of mappings and lists (a state's transitions are 4 levels deep)."""
 MAX_STATES = 500
 """The most states an FSA file may hold."""
+MAX_VALUES = 10_000
+"""The most values (names, numbers, lists, mappings) a file may hold: 500 states of 20."""
 _MAX_OPEN_BRACKETS = 256  # `[` and `{` open at once in the raw text, before parsing
 
 _STD = "tag:yaml.org,2002:"
@@ -177,12 +181,21 @@ class _GuardedParser(RoundTripParser):
         super().__init__(loader)
         self.problems: list[Problem] = []
         self.depth = 0
+        self.values = 0
         self.last_mark: Any = None
 
     def get_event(self) -> Any:
         event = super().get_event()
         mark = event.start_mark
         self.last_mark = mark
+        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
+            self.values += 1
+            if self.values > MAX_VALUES:
+                raise _Refused(_mark_problem(
+                    mark, f"the file holds more than {MAX_VALUES} values (names, numbers, "
+                    "lists and mappings)", fix=f"an FSA file has at most {MAX_STATES} "
+                    "states; split a large FSA into nested FSAs",
+                ))
         if isinstance(event, CollectionStartEvent):
             self.depth += 1
             if self.depth > MAX_DEPTH:
