@@ -184,8 +184,26 @@ class _GuardedParser(RoundTripParser):
         self.values = 0
         self.last_mark: Any = None
 
+    def _next(self) -> None:
+        """Produce the next event, if none is waiting, and inspect it once."""
+        if self.current_event is None and self.state:
+            self.current_event = self.state()
+            if self.current_event is not None:
+                self._inspect(self.current_event)
+
+    def check_event(self, *choices: Any) -> bool:
+        self._next()
+        return bool(super().check_event(*choices))
+
+    def peek_event(self) -> Any:
+        self._next()
+        return super().peek_event()
+
     def get_event(self) -> Any:
-        event = super().get_event()
+        self._next()
+        return super().get_event()
+
+    def _inspect(self, event: Any) -> None:
         mark = event.start_mark
         self.last_mark = mark
         if isinstance(event, (ScalarEvent, CollectionStartEvent)):
@@ -223,6 +241,7 @@ class _GuardedParser(RoundTripParser):
                     mark, f"YAML anchor &{event.anchor} is not allowed in FSA files",
                     fix="remove the anchor and write each value out in full",
                 ))
+                event.anchor = None  # reported: the composer need not keep (or warn about) it
             tag = _tag_text(event.tag)
             kind = ("scalar" if isinstance(event, ScalarEvent) else
                     "seq" if isinstance(event, SequenceStartEvent) else "map")
@@ -233,7 +252,6 @@ class _GuardedParser(RoundTripParser):
                     f"data: no code, and on a {_KIND_NAMES[kind]} only {allowed})",
                     fix=f"remove {_short_tag(tag)}",
                 ))
-        return event
 
 
 def _tag_text(tag: Any) -> str:
@@ -332,8 +350,8 @@ def _check_flow_depth(text: str) -> None:
             if depth > _MAX_OPEN_BRACKETS:
                 line, col = _line_col(text, m.start())
                 raise _Refused(Problem(
-                    f"the data is nested more than {MAX_DEPTH} levels deep (more than "
-                    f"{_MAX_OPEN_BRACKETS} brackets are open here)",
+                    f"more than {_MAX_OPEN_BRACKETS} brackets are open here: the data is "
+                    f"nested more than {MAX_DEPTH} levels deep",
                     fix="FSA files are shallow: a state is 4 levels deep; flatten this value",
                     line=line, column=col,
                 ))

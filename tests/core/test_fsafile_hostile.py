@@ -267,3 +267,12 @@ def test_bad_bytes_are_located(tmp_path: Path) -> None:
 def test_control_characters_are_located() -> None:
     message = _only(VALID + "meta: {a: b\x07c}\n")
     assert "bad.yaml:8:12:" in message
+
+
+def test_refused_anchors_raise_no_warnings() -> None:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a warning would be printed around the CLI's one line
+        message = _only(VALID + "meta: [&a 1, &a 2, &a 3]\n")
+    assert message.count("YAML anchor &a is not allowed") == 3

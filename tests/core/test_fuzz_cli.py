@@ -29,6 +29,10 @@ PLACES = Path(tempfile.mkdtemp(prefix="skillcompose-fuzz-cli-"))
 (PLACES / "a_dir").mkdir()
 (PLACES / "a_file.txt").write_text("not yaml: [")
 (PLACES / "garbage.yaml").write_bytes(b"\xff\xfe\x00format: 1\n" + b"[" * 5000)
+(PLACES / "hostile.yaml").write_text(
+    "format: !!int 0x\nstart: A\nstep_limit: 1000000000000\nmeta: [&a 1, &a 2, *a, !!bool x]\n"
+    "states: {A: {skill: X, transitions: {ok: " + "[" * 300 + "}}}\n"
+)
 
 EXAMPLES = max(10, int(os.environ.get("SKILLCOMPOSE_FUZZ_EXAMPLES", "60")) // 3)
 SECONDS = 30.0
@@ -41,7 +45,8 @@ NUMBERS = ["-1", "0", "1", "2", "3", "-0", "+2", "1.5", "1e3", "nan", "inf", "-i
 PATHS = [str(PLACES / "a_dir"), str(PLACES / "a_dir") + "/", str(PLACES / "a_file.txt"),
          str(PLACES / "a_file.txt" / "x.png"), str(PLACES / "missing" / "deeper" / "x.png"),
          str(PLACES / "out.svg"), str(PLACES / "out.csv"), str(PLACES / "x.txt"), "",
-         "/proc/skillcompose/x.png", str(PLACES / "garbage.yaml"), "-"]
+         "/proc/skillcompose/x.png", str(PLACES / "garbage.yaml"),
+         str(PLACES / "hostile.yaml"), "-"]
 MODULES = [".name", "a..b", "os", "os.path", "examples", "examples.toy_task",
            "no_such_module_at_all", "examples.no_such", "skillcompose", "x y", "1abc",
            str(PLACES / "a_file.txt"), str(PLACES / "a_dir"), "tests.core.demo_skills",
