@@ -15,11 +15,13 @@ saved as an editable FSA file that ``skillcompose run`` runs and ``--seed-fsa`` 
 
 from __future__ import annotations
 
-from .algorithm import EvolutionResult, GenerationRecord, evolve
+from .algorithm import EvolutionResult, GenerationRecord, check_fresh, evolve
 from .config import PRESETS, EvolutionConfig
 from .errors import CheckpointError, EvolutionConfigError, EvolutionError, SeedFSAError
 from .evaluation import (
     BACKENDS,
+    EvalLimits,
+    Faults,
     Job,
     ProcessEvaluator,
     RayEvaluator,
@@ -33,8 +35,10 @@ from .operators import (
     change_start,
     crossover,
     delete_node,
+    fix_start,
     initialize,
     mutate,
+    mutate_genes,
     mutate_node,
 )
 from .rundir import RunDir, draw_fsa, fsa_dot, plot_history
@@ -44,10 +48,12 @@ __all__ = [
     "BACKENDS",
     "PRESETS",
     "CheckpointError",
+    "EvalLimits",
     "EvolutionConfig",
     "EvolutionConfigError",
     "EvolutionError",
     "EvolutionResult",
+    "Faults",
     "GenerationRecord",
     "Genome",
     "GenomeCompiler",
@@ -62,16 +68,19 @@ __all__ = [
     "SkillSet",
     "add_node",
     "change_start",
+    "check_fresh",
     "crossover",
     "delete_node",
     "draw_fsa",
     "evaluate_genome",
     "evolve",
+    "fix_start",
     "fsa_dot",
     "initialize",
     "make_evaluator",
     "merge_duplicates",
     "mutate",
+    "mutate_genes",
     "mutate_node",
     "plot_history",
     "simplify",

@@ -15,8 +15,11 @@ resumed from a checkpoint is the same as one never interrupted.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 import os
+import shlex
 import statistics
 import sys
 import time
@@ -26,24 +29,39 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
+from ruamel.yaml.comments import CommentedMap
 
-from skillcompose import FSA, load_fsa
+from skillcompose import FSA, dumps_fsa, load_fsa, loads_fsa
+from skillcompose.executor import trial_rngs
+from skillcompose.fsa import Source
 from skillcompose.task import Task
 
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
-from .evaluation import BACKENDS, Job, make_evaluator
+from .evaluation import (
+    BACKENDS,
+    TIMED_OUT,
+    EvalLimits,
+    Faults,
+    Guard,
+    Job,
+    evaluate_episode,
+    evaluate_job,
+    make_evaluator,
+)
 from .genome import Genome, GenomeCompiler, SkillSet
 from .operators import crossover, initialize, mutate
+from .resume import FREE_SETTINGS, MEANING, check_record, differences, normalise, run_record
 from .rundir import RunDir
 from .simplify import simplify
 
-__all__ = ["EvolutionResult", "GenerationRecord", "evolve"]
+__all__ = ["EvolutionResult", "GenerationRecord", "check_fresh", "evolve"]
 
 _PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 _BREED = 0
 _EVAL = 1
 _CONFIRM = 2
+_FRESH = 3
 
 
 @dataclass(frozen=True)
@@ -59,6 +77,7 @@ class GenerationRecord:
     total_evaluations: int
     evals_per_s: float
     wall_time: float  # seconds since the run started, across resumes
+    faults: dict[str, int] = field(default_factory=dict)  # Faults.to_dict() of the generation
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -80,10 +99,40 @@ class EvolutionResult:
     seed: int
     out_dir: Path | None = None
     files: list[Path] = field(default_factory=list)
+    unchanged: bool = False  # a resumed run that had finished: nothing was done or written
+    budget: int = 0  # the generation budget
+    run_command: str = ""  # a command line that runs the exported FSA on its task
+    faults: Faults = field(default_factory=Faults)  # over the whole run
+    fresh: dict[str, Any] = field(default_factory=dict)  # see check_fresh (empty: not run)
+
+    @property
+    def nothing_succeeded(self) -> bool:
+        """Every evaluation of the run failed (raised in every episode, timed out, or killed
+        its worker): nothing was learnt about the task."""
+        return self.faults.jobs > 0 and self.faults.failed == self.faults.jobs
 
 
 def _nan_safe(f: float, minimize: bool) -> float:
     return (math.inf if minimize else -math.inf) if math.isnan(f) else f
+
+
+def _tuples(data: Any) -> Any:
+    """JSON lists back to the tuples a genome's code and key are made of; only numbers."""
+    if isinstance(data, list):
+        return tuple(_tuples(x) for x in data)
+    return _number(data)
+
+
+def _number(x: Any) -> float | int:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise TypeError(f"expected a number, found {type(x).__name__}")
+    return x
+
+
+def _whole(x: Any) -> int:
+    if isinstance(x, bool) or not isinstance(x, int) or x < 0:
+        raise TypeError(f"expected a whole number, found {x!r}")
+    return x
 
 
 class _Run:
@@ -92,7 +141,7 @@ class _Run:
     def __init__(
         self, task: Task, cfg: EvolutionConfig, seed: int, skills: SkillSet,
         evaluator: Any, rundir: RunDir | None, progress: TextIO | None,
-        trials: int, simplify_trials: int,
+        trials: int, record_info: Mapping[str, Any],
     ) -> None:
         self.task = task
         self.cfg = cfg
@@ -101,10 +150,12 @@ class _Run:
         self.evaluator = evaluator
         self.rundir = rundir
         self.progress = progress
-        self._tty = bool(getattr(progress, "isatty", lambda: False)())
+        self._bar: Any = None  # a tqdm bar on a terminal
         self._last_line = -math.inf  # wall time of the last progress line (not a terminal)
         self.trials = trials
-        self.simplify_trials = simplify_trials
+        self.record_info = dict(record_info)
+        self.exported = False
+        self.seed_names: _SeedNames | None = None
         self.compiler = GenomeCompiler(task, skills)
         self.rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_BREED,)))
         self.generation = 0
@@ -116,37 +167,89 @@ class _Run:
         self.wall_before = 0.0
         self.next_uid = 0
         self.elite_fitness: dict[int, float] = {}
+        self.first_error: str | None = None  # the run's first exception, summarised
+        self.gen_faults = Faults()
+        self.fault_totals = Faults()  # over the run so far, for the progress line
         self.t0 = time.perf_counter()
 
     # -- checkpoint ------------------------------------------------------------------------
-    def state(self) -> dict[str, Any]:
+    def state(self, fitness: list[float] | None = None) -> dict[str, Any]:
+        """Everything needed to continue, as plain JSON data. ``fitness``: the population
+        has been evaluated (the run ended), these are its fitnesses."""
+        def genome(g: Genome) -> list[Any]:
+            return [g.encode(), g.origin]
+
         return {
+            "run": dict(self.record_info),
             "seed": self.seed,
             "config": self.cfg.to_dict(),
             "generation": self.generation,
-            "population": self.population,
+            "population": [genome(g) for g in self.population],
+            "fitness": fitness,
             "rng": self.rng.bit_generator.state,
-            "best": self.best,
+            "best": None if self.best is None else [
+                genome(self.best[0]), self.best[1], self.best[2]],
             "history": [r.to_dict() for r in self.history],
-            "cache": self.cache,
+            "cache": [[list(k), total, count] for k, (total, count) in self.cache.items()],
             "evaluations": self.evaluations,
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
-            "elite_fitness": self.elite_fitness,
+            "elite_fitness": [[uid, f] for uid, f in self.elite_fitness.items()],
+            "first_error": self.first_error,
+            "exported": self.exported,
         }
 
-    def restore(self, st: Mapping[str, Any]) -> None:
-        self.generation = st["generation"]
-        self.population = st["population"]
-        self.rng.bit_generator.state = st["rng"]
-        self.best = st["best"]
-        self.history = [GenerationRecord(**r) for r in st["history"]]
-        self.cache = st["cache"]
-        self.evaluations = st["evaluations"]
-        self.wall_before = st["wall_time"]
-        self.next_uid = st["next_uid"]
-        self.elite_fitness = st["elite_fitness"]
+    def restore(self, st: Mapping[str, Any], where: str) -> list[float] | None:
+        """Continue from a checkpoint's state, checking every value (a checkpoint is data
+        from a file); returns the fitnesses of an evaluated population, else None."""
+        try:
+            self.generation = _whole(st["generation"])
+            self.population = [self._genome(g) for g in st["population"]]
+            if len(self.population) != self.cfg.population:
+                raise ValueError("population size")
+            fitness = st.get("fitness")
+            if fitness is not None:
+                fitness = [_number(f) for f in fitness]
+                if len(fitness) != len(self.population):
+                    raise ValueError("fitness")
+            self.rng.bit_generator.state = st["rng"]
+            best = st["best"]
+            self.best = None if best is None else (
+                self._genome(best[0]), _number(best[1]), _whole(best[2]))
+            self.history = [GenerationRecord(**r) for r in st["history"]]
+            self.cache = {
+                _tuples(k): (_number(total), _whole(count)) for k, total, count in st["cache"]
+            }
+            self.evaluations = _whole(st["evaluations"])
+            self.wall_before = _number(st["wall_time"])
+            self.next_uid = _whole(st["next_uid"])
+            self.elite_fitness = {_whole(uid): _number(f) for uid, f in st["elite_fitness"]}
+            self.exported = bool(st.get("exported", False))
+            first_error = st.get("first_error")
+            if first_error is not None and not isinstance(first_error, str):
+                raise TypeError("first_error is not text")
+            self.first_error = first_error
+            self.fault_totals = self.faults()  # checks each generation's fault counts
+        except CheckpointError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError,
+                RecursionError) as exc:
+            raise CheckpointError(
+                f"{where} is malformed ({type(exc).__name__}: {exc}); restore it from a copy "
+                "or start afresh"
+            ) from None
         self.t0 = time.perf_counter()
+        return fitness
+
+    def _genome(self, data: Any) -> Genome:
+        code, origin = data
+        if not isinstance(origin, dict):
+            raise TypeError("a genome's origin is not an object")
+        g = Genome.decode(_tuples(code), origin)
+        problems = g.problems(self.skills)
+        if problems:
+            raise ValueError(f"a genome of the checkpoint is not one of this task: {problems[0]}")
+        return g
 
     def wall(self) -> float:
         return self.wall_before + time.perf_counter() - self.t0
@@ -202,6 +305,9 @@ class _Run:
 
         results = self.evaluator.evaluate(new_jobs(), expected=cfg.population)
         assert self.generation == g and len(fitness) == len(self.population)
+        self.gen_faults = self.evaluator.faults
+        if self.first_error is None and self.gen_faults.first_error is not None:
+            self.first_error = f"in generation {g}: {self.gen_faults.first_error}"
         episodes = sum(j.trials for j in jobs)
         for job, idx, f in zip(jobs, slots, results, strict=True):
             f = _nan_safe(float(f), self.task.minimize)
@@ -288,12 +394,15 @@ class _Run:
             total_evaluations=self.evaluations,
             evals_per_s=episodes / gen_time if gen_time > 0 else 0.0,
             wall_time=self.wall(),
+            faults=self.gen_faults.to_dict(),
         )
+        self.fault_totals.add(self.gen_faults)
         self.history.append(rec)
         if self.rundir is not None:
             self.rundir.append_history(rec.to_dict())
             if improved:
-                self.rundir.write_best(self.best_fsa(), self.task.registry, self.header())
+                self.rundir.write_best(self.named(self.best_fsa()), self.task.registry,
+                                       self.header())
         return rec
 
     def confirm(self) -> bool:
@@ -302,9 +411,11 @@ class _Run:
         that measured mean and evolution goes on."""
         assert self.best is not None
         g, _, gen = self.best
-        seq = np.random.SeedSequence(self.seed, spawn_key=(_CONFIRM, self.generation))
-        mean = self.task.evaluate(self.compiler.compile(g), seq, self.cfg.confirm_trials)
-        self.evaluations += self.cfg.confirm_trials
+        trials = 1 if self.task.deterministic else self.cfg.confirm_trials
+        job = Job.of(g, self.seed, (_CONFIRM, self.generation), trials)
+        with Guard(self.cfg.eval_time_limit) as guard:
+            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False)
+        self.evaluations += trials
         if self.task.solved(mean):
             return True
         self.best = (g, mean, gen)
@@ -312,16 +423,20 @@ class _Run:
 
     # -- export ----------------------------------------------------------------------------
     def best_fsa(self, simplified: dict[str, Any] | None = None) -> FSA:
+        """The best genome as an FSA, states named ``Skill_N``."""
         assert self.best is not None
         g, f, gen = self.best
+        info = self.record_info
         meta: dict[str, Any] = {
             "evolved": {
                 "task": self.task.name,
-                "task_settings": dict(self.task.settings),
+                "task_module": info.get("task_module"),
+                "task_settings": dict(info.get("task_settings") or self.task.settings),
                 "fitness": f,
                 "solved": self.task.solved(f),
                 "found_in_generation": gen,
                 "seed": self.seed,
+                "config": self.cfg.to_dict(),
                 "lineage": dict(g.origin),
             }
         }
@@ -329,41 +444,188 @@ class _Run:
             meta["simplified"] = simplified
         return self.compiler.fsa(g, name=f"{self.task.name}_evolved", meta=meta)
 
+    def named(self, fsa: FSA) -> FSA:
+        """``fsa`` with the seed file's state names (and comments) where they survive."""
+        return self.seed_names.apply(fsa, self.header()) if self.seed_names else fsa
+
     def header(self) -> str:
         assert self.best is not None
         _, f, gen = self.best
         return (
             f"Evolved by skillcompose for task {self.task.name} (seed {self.seed}): fitness "
             f"{f:g} in generation {gen}.\nEdit freely: rename states, change parameters (in "
-            "the skills' units), re-route outcomes.\nRun it with `skillcompose run FILE`, or "
-            "evolve from it with `--seed-fsa FILE`."
+            "the skills' units), re-route outcomes.\nRun it with `"
+            f"{run_command('FILE', self.record_info)}`,\nor evolve from it with "
+            "`--seed-fsa FILE`."
         )
 
-    def show_progress(self, rec: GenerationRecord) -> None:
-        if self.progress is None:
+    def faults(self) -> Faults:
+        """The run's faults so far, from its history."""
+        total = Faults()
+        for r in self.history:
+            if not isinstance(r.faults, dict):
+                raise TypeError("a generation's faults are not an object")
+            gen = Faults()
+            for k, v in r.faults.items():
+                if k in _FAULT_FIELDS:
+                    setattr(gen, k, _whole(v))
+            total.add(gen)
+        total.first_error = self.first_error
+        return total
+
+    def show_progress(self, rec: GenerationRecord, final: bool = False) -> None:
+        """What is known: generations done (of the budget), their rate, the best fitness and
+        size, evaluations/s, and the faults so far. No time to the end: a run stops when it
+        solves the task, which nobody can foresee (the budget only bounds it)."""
+        if self.progress is None or (final and self._last_line == rec.wall_time):
             return
-        total = self.cfg.generations
-        done = rec.generation + 1
-        width = 24
-        filled = int(width * min(done, total + 1) / (total + 1))
-        per_gen = rec.wall_time / max(1, len(self.history))
-        eta = per_gen * max(0, total - rec.generation)
-        text = (
-            f"[{'#' * filled}{'.' * (width - filled)}] gen {rec.generation}/{total} "
-            f"best {rec.best:.4g} size {rec.best_size} {rec.evals_per_s:,.0f} evals/s "
-            f"ETA {_hms(eta)}"
-        )
-        if self._tty:  # one line, redrawn in place
-            self.progress.write(f"\r{text}   ")
-        elif rec.wall_time - self._last_line >= 5.0:  # a log: a line every 5 s at most
+        from tqdm import tqdm
+
+        done = len(self.history)
+        so_far = self.best[1] if self.best is not None else rec.best
+        postfix = (f"best {so_far:.4g} (this generation {rec.best:.4g}, size "
+                   f"{rec.best_size}), {rec.evals_per_s:,.0f} evals/s")
+        faults = self.fault_totals.describe()
+        if faults:
+            postfix += f", faults: {faults}"
+        desc = f"gen {rec.generation}/{self.cfg.generations}"
+        if getattr(self.progress, "isatty", lambda: False)():
+            if self._bar is None:
+                self._bar = tqdm(
+                    total=None, initial=done, unit="gen", file=self.progress,
+                    dynamic_ncols=True, leave=True, desc=desc, postfix=postfix,
+                    bar_format="{desc}: {elapsed}, {rate_fmt}{postfix}",
+                )
+            else:
+                self._bar.set_description_str(desc, refresh=False)
+                self._bar.set_postfix_str(postfix, refresh=False)
+                self._bar.update(1)
+        elif rec.wall_time - self._last_line >= 5.0 or final:  # a log: a line per 5 s
             self._last_line = rec.wall_time
-            self.progress.write(text + "\n")
-        self.progress.flush()
+            rate = done / rec.wall_time if rec.wall_time > 0 else 0.0
+            line = tqdm.format_meter(
+                done, None, rec.wall_time, prefix=desc, unit="gen", rate=rate,
+                bar_format="{desc}: {elapsed}, {rate_fmt}{postfix}", postfix=postfix,
+            )
+            self.progress.write(line + "\n")
+            self.progress.flush()
+
+    def close_progress(self) -> None:
+        if self._bar is None and self.history:  # a log ends with the last generation
+            self.show_progress(self.history[-1], final=True)
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
 
-def _hms(s: float) -> str:
-    s = int(s)
-    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
+def run_command(path: str, info: Mapping[str, Any]) -> str:
+    """A ``skillcompose run`` command line that runs an exported FSA on its task."""
+    module = info.get("task_module")
+    if not module:
+        return f"skillcompose run {shlex.quote(path)} --task TASK"
+    words = ["skillcompose", "run", path, "--task", str(module)]
+    for k, v in dict(info.get("task_settings") or {}).items():
+        words += ["--set", f"{k}={v}"]
+    return " ".join(shlex.quote(w) for w in words)
+
+
+class _SeedNames:
+    """The state names of a seed FSA file, given back to the states that survive evolution.
+
+    A state of an exported FSA is the seed's state when it comes from the same genome node
+    (its number) and runs the same skill with the same parameters: it takes the seed's name.
+    When its transitions are the same as well, it keeps the seed file's entry, comments
+    included; the rest of the file (the header, the other states) is written afresh.
+    """
+
+    def __init__(self, seed: FSA, genome: Genome, compiler: GenomeCompiler) -> None:
+        self.seed = seed
+        self.generated = compiler.fsa(genome)  # the seed as a genome exports it: Skill_N
+        self.names: dict[str, str] = {}  # Skill_N -> the seed's name
+        queue = [(self.generated.start, seed.start)]
+        while queue:  # the two are the same graph: walk both from the start
+            gen, own = queue.pop()
+            if gen in self.names:
+                continue
+            self.names[gen] = own
+            for outcome, target in self.generated.states[gen].transitions.items():
+                if target in self.generated.states:
+                    queue.append((target, seed.states[own].transitions[outcome]))
+
+    def apply(self, fsa: FSA, header: str) -> FSA:
+        rename: dict[str, str] = {}
+        unchanged: set[str] = set()
+        for name, st in fsa.states.items():
+            was = self.generated.states.get(name)
+            if name not in self.names or was is None or (st.skill, dict(st.params)) != (
+                    was.skill, dict(was.params)):
+                continue
+            rename[name] = self.names[name]
+            if dict(st.transitions) == dict(was.transitions):
+                unchanged.add(self.names[name])
+        taken = set(fsa.states) - set(rename)
+        rename = {k: v for k, v in rename.items() if v not in taken}
+
+        def to(n: str) -> str:
+            return rename.get(n, n)
+
+        states = {
+            to(n): dataclasses.replace(st, transitions={o: to(t) for o, t in
+                                                        st.transitions.items()})
+            for n, st in fsa.states.items()
+        }
+        named = fsa.replace(states=states, start=to(fsa.start))
+        source = self.seed.source
+        if source is None or not isinstance(source.document, CommentedMap):
+            return named
+        doc = copy.deepcopy(source.document)
+        kept = doc.get("states")
+        if isinstance(kept, CommentedMap):
+            for gone in [k for k in kept if k not in unchanged or k not in rename.values()]:
+                del kept[gone]
+        doc.yaml_set_start_comment(header)
+        return named.replace(source=Source(None, {}, doc))
+
+
+_FAULT_FIELDS = frozenset(Faults().to_dict())
+
+
+def check_fresh(
+    task: Task, fsa: FSA, seed: int, trials: int, time_limit: float | None = None
+) -> dict[str, Any]:
+    """How ``fsa`` does on ``trials`` fresh episodes (worlds from ``SeedSequence(seed,
+    spawn_key=(3,))``, never seen during evolution or simplification): the share that
+    reach the task's target, the mean fitness, and the episodes that raised or ran past
+    ``time_limit`` [s] (each scores worst)."""
+    compiled = task.compile(fsa)
+    scores: list[float] = []
+    raised = timeouts = 0
+    seq = np.random.SeedSequence(seed, spawn_key=(_FRESH,))
+    with Guard(time_limit) as guard:
+        for rng in trial_rngs(seq, trials):
+            f, code = evaluate_episode(task, compiled, rng, guard)
+            raised += code >> 2
+            timeouts += code & TIMED_OUT
+            scores.append(f)
+    n = len(scores)
+    return {
+        "episodes": n,
+        "success_rate": sum(map(task.solved, scores)) / n if n else 0.0,
+        "mean_fitness": float(statistics.fmean(scores)) if n else math.nan,
+        "raised": raised,
+        "timeouts": timeouts,
+        "seed": seed,
+    }
+
+
+def fresh_differs(task: Task, evolved: float, fresh: float) -> bool:
+    """Whether the fitness on fresh episodes tells another story than the evolved one: the
+    task counts one as solved and not the other, or they differ by more than 10 %."""
+    if task.solved(evolved) != task.solved(fresh):
+        return True
+    if math.isinf(evolved) or math.isinf(fresh) or math.isnan(fresh):
+        return evolved != fresh
+    return abs(fresh - evolved) > 0.1 * max(abs(fresh), abs(evolved))
 
 
 def evolve(
@@ -377,8 +639,9 @@ def evolve(
     progress: bool | TextIO = False,
     *,
     resume: str | os.PathLike[str] | None = None,
-    simplify_result: bool = True,
-    simplify_trials: int = 200,
+    simplify_result: bool | None = None,
+    simplify_trials: int | None = None,
+    check_trials: int | None = None,
     on_generation: Callable[[GenerationRecord], None] | None = None,
 ) -> EvolutionResult:
     """Evolve an FSA for ``task`` (algorithm 1), stopping when solved or out of generations.
@@ -387,28 +650,113 @@ def evolve(
     - ``backend``: ``"serial"``, ``"process"`` (``workers`` processes, default all cores) or
       ``"ray"``; the result does not depend on it.
     - ``out_dir``: write the run directory (see :mod:`evolve.rundir`) as the run goes.
-    - ``resume``: a run directory to continue from its last checkpoint (``task`` must be
-      the same task; ``cfg`` and ``seed`` come from the checkpoint).
-    - ``seed_fsa``: an FSA (or file) placed in the first population, the rest random.
-    - ``simplify_result``: simplify the best FSA at the end with ``simplify_trials`` fresh
-      trials (see :func:`evolve.simplify`).
-    - ``progress``: a live progress line on stderr (or on the given stream).
+    - ``resume``: a run directory to continue from its last checkpoint (see
+      :mod:`evolve.resume`). ``task`` must be the run's task; the seed, the settings, the
+      simplification and the fresh-episode check are the run's. ``cfg``, when given, may
+      differ from the run's only in ``generations`` (to extend a run: the result is the run
+      an uninterrupted run to that budget would have given), ``checkpoint_every``,
+      ``chunks_per_worker``, ``worker_max_jobs`` and ``worker_max_growth_mb``. A finished
+      run is not touched (``result.unchanged``).
+    - ``seed_fsa``: an FSA (or file) placed in the first population, the rest random; the
+      states that survive evolution keep their names (and, from a file, their comments).
+    - ``simplify_result``: simplify the best FSA at the end (default on) with
+      ``simplify_trials`` fresh trials (default 200; see :func:`evolve.simplify`).
+    - ``check_trials``: fresh episodes on which the exported FSA is measured at the end
+      (default 200; :func:`check_fresh`; ``result.fresh``, ``run.json``); 0 skips it. A
+      deterministic task (``Task.deterministic``) uses one trial for evaluations,
+      simplification and this check.
+    - ``progress``: progress on stderr (or on the given stream): a live line on a
+      terminal, a line every 5 s otherwise; both show the faults so far.
     """
     if backend not in BACKENDS:
         raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     rundir: RunDir | None = None
     checkpoint: dict[str, Any] | None = None
+    record: dict[str, Any] | None = None
     if resume is not None:
+        if seed_fsa is not None:
+            raise EvolutionError("seed_fsa starts a new run; a resumed run has its own already")
         rundir = RunDir(resume)
-        checkpoint = rundir.load_checkpoint()
-        cfg = EvolutionConfig.from_dict(checkpoint["config"])
-        seed = checkpoint["seed"]
-        info = rundir.load_run_info()
-        if info.get("task") != task.name:
-            raise CheckpointError(
-                f"{rundir.path} is a run of task {info.get('task')!r}, not {task.name!r}"
-            )
+        rundir.lock()
+        try:
+            checkpoint = rundir.load_checkpoint()
+            record, cfg = _resumed(task, cfg, rundir, checkpoint, simplify_result,
+                                   simplify_trials, check_trials)
+        except BaseException:
+            rundir.unlock()
+            raise
+        seed = record["seed"]
+        simplify_result, simplify_trials = record["simplify"], record["simplify_trials"]
+        check_trials = record["check_trials"]
+    elif out_dir is not None:
+        rundir = RunDir(out_dir)  # created (and locked) once the run's record is known
+    try:
+        return _evolve(task, cfg, seed, workers, backend, seed_fsa, progress,
+                       rundir, checkpoint, record, simplify_result, simplify_trials,
+                       check_trials, on_generation)
+    finally:
+        if rundir is not None:
+            rundir.unlock()
+
+
+def _resumed(
+    task: Task, cfg: EvolutionConfig | None, rundir: RunDir, checkpoint: Mapping[str, Any],
+    simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
+) -> tuple[dict[str, Any], EvolutionConfig]:
+    """The run's record and settings, checked against ``run.json`` and what was given."""
+    where = str(rundir.checkpoint)
+    record = check_record(checkpoint.get("run"), where)
+    info = rundir.load_run_info()
+    edited = [k for k in MEANING if normalise(info.get(k)) != record[k]]
+    if edited:
+        raise CheckpointError(
+            f"{rundir.run_json} differs from the run's checkpoint in "
+            f"{', '.join(differences(record, {k: info.get(k) for k in edited}))}; "
+            "a run cannot change its meaning on resume: restore run.json, or start a new run "
+            "with the settings you want"
+        )
+    recorded_cfg = EvolutionConfig.from_dict(record["config"])
+    given: dict[str, Any] = {"task": task.name}
+    if task.ref is not None:
+        given["task_settings"] = dict(task.ref.settings)
+    if simplify_result is not None:
+        given["simplify"] = simplify_result
+    if simplify_trials is not None:
+        given["simplify_trials"] = simplify_trials
+    if check_trials is not None:
+        given["check_trials"] = check_trials
+    problems = differences(record, given)
+    if cfg is not None:
+        mine = recorded_cfg.to_dict()
+        problems += differences(mine, {
+            k: v for k, v in cfg.to_dict().items() if k not in FREE_SETTINGS})
+        recorded_cfg = recorded_cfg.replace(**{k: getattr(cfg, k) for k in FREE_SETTINGS})
+    if problems:
+        raise CheckpointError(
+            f"{rundir.path}: resuming with {'; '.join(problems)} would change the run; leave "
+            "them out (a resume may change only the generation budget, the backend, the "
+            "workers, when workers are replaced and how often it checkpoints)"
+        )
+    return record, recorded_cfg
+
+
+def _evolve(
+    task: Task, cfg: EvolutionConfig | None, seed: int | None, workers: int | None,
+    backend: str, seed_fsa: FSA | str | os.PathLike[str] | None, progress: bool | TextIO,
+    rundir: RunDir | None, checkpoint: dict[str, Any] | None, record: dict[str, Any] | None,
+    simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
+    on_generation: Callable[[GenerationRecord], None] | None,
+) -> EvolutionResult:
     cfg = cfg or EvolutionConfig()
+    simplify_result = True if simplify_result is None else simplify_result
+    simplify_trials = 200 if simplify_trials is None else simplify_trials
+    if isinstance(simplify_trials, bool) or not isinstance(simplify_trials, int) or \
+            simplify_trials < 1:
+        raise EvolutionError(f"simplify_trials must be a whole number >= 1, got "
+                             f"{simplify_trials!r}")
+    check_trials = 200 if check_trials is None else check_trials
+    if isinstance(check_trials, bool) or not isinstance(check_trials, int) or check_trials < 0:
+        raise EvolutionError(f"check_trials must be a whole number >= 0, got {check_trials!r}")
     if seed is None:
         seed = int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> 1)
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
@@ -416,86 +764,140 @@ def evolve(
     seed = int(seed)
     skills = SkillSet.from_task(task)
     trials = cfg.trials or task.trials
+    # the run records the trials asked for; a deterministic task uses one: every episode is
+    # the same, one says it all
+    simplify_used, check_used = simplify_trials, check_trials
+    if task.deterministic:
+        trials = 1
+        simplify_used, check_used = min(simplify_used, 1), min(check_used, 1)
     stream: TextIO | None = sys.stderr if progress is True else (progress or None)
     if backend == "process" and workers is None:
         workers = os.cpu_count() or 1
-    seed_genome: Genome | None = None
-    if seed_fsa is not None and checkpoint is None:
-        fsa = seed_fsa if isinstance(seed_fsa, FSA) else load_fsa(seed_fsa)
-        seed_genome = Genome.from_fsa(fsa, skills, str(seed_fsa) if not isinstance(
-            seed_fsa, FSA) else (fsa.path or ""))
-    if out_dir is not None and rundir is None:
-        rundir = RunDir(out_dir)
-        rundir.create({
-            "task": task.name,
-            "task_module": task.ref.module if task.ref else None,
-            "task_settings": dict(task.ref.settings) if task.ref else dict(task.settings),
-            "seed": seed,
-            "backend": backend,
-            "workers": workers,
-            "seed_fsa": str(seed_fsa) if seed_fsa is not None and not isinstance(
-                seed_fsa, FSA) else None,
-            "config": cfg.to_dict(),
-        })
-    evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker)
-    run = _Run(task, cfg, seed, skills, evaluator, rundir, stream, trials, simplify_trials)
-    try:
-        if checkpoint is not None:
-            assert rundir is not None
-            run.restore(checkpoint)
-            rundir.rewrite_history([r.to_dict() for r in run.history])
+    seed_text: str | None = None
+    seed_source: FSA | None = None
+    seed_path: str | None = None
+    if checkpoint is not None:
+        seed_text = checkpoint.get("seed_fsa_text")
+        if seed_text is not None:
+            if not isinstance(seed_text, str):
+                raise CheckpointError(f"{rundir and rundir.checkpoint}: seed_fsa_text is not text")
+            seed_source = loads_fsa(seed_text, "the run's seed FSA")
+    elif seed_fsa is not None:
+        if isinstance(seed_fsa, FSA):
+            seed_source = seed_fsa
         else:
-            for i in range(cfg.population):
-                g = initialize(skills, run.rng, cfg.initial_nodes, cfg.terminal_weight)
-                if i == 0 and seed_genome is not None:
-                    g = seed_genome.copy()
-                g.origin = {**g.origin, "uid": run.uid(), "born": 0, "parents": [], "ops": [
-                    "seed_fsa" if (i == 0 and seed_genome is not None) else "init"]}
-                run.population.append(g)
-        solved = run.best is not None and task.solved(run.best[1])
-        last_plot = time.perf_counter()
+            seed_path = str(seed_fsa)
+            seed_source = load_fsa(seed_fsa)
+            seed_text = Path(seed_fsa).read_text(encoding="utf-8")
+    seed_genome: Genome | None = None
+    if seed_source is not None:
+        seed_genome = Genome.from_fsa(seed_source, skills, seed_path or seed_source.path or "")
+    if record is None:
+        record = run_record(task, seed, cfg, seed_path, simplify_result, simplify_trials,
+                            check_trials)
+    else:
+        record = {**record, "config": cfg.to_dict()}  # a resume may extend the budget
+    info = {**record, "backend": backend, "workers": workers}
+    if rundir is not None and checkpoint is None:
+        rundir.create(info)
+    run = _Run(task, cfg, seed, skills, None, rundir, stream, trials, record)
+    if seed_source is not None and seed_genome is not None:
+        run.seed_names = _SeedNames(seed_source, seed_genome, run.compiler)
+    fitness: list[float] | None = None
+    if checkpoint is not None:
+        assert rundir is not None
+        fitness = run.restore(checkpoint, str(rundir.checkpoint))
+        if fitness is None and cfg.generations < run.generation:
+            raise CheckpointError(
+                f"{rundir.path} has reached generation {run.generation} already; give "
+                f"--generations {run.generation} or more"
+            )
+        ended = fitness is not None and (
+            (run.best is not None and task.solved(run.best[1]))
+            or run.generation >= cfg.generations)
+        if ended and run.exported:
+            return _unchanged(run, checkpoint, rundir)
+        rundir.write_run_info(info)
+        rundir.rewrite_history([r.to_dict() for r in run.history])
+    else:
+        for i in range(cfg.population):
+            g = initialize(skills, run.rng, cfg.initial_nodes, cfg.terminal_weight)
+            if i == 0 and seed_genome is not None:
+                g = seed_genome.copy()
+            g.origin = {**g.origin, "uid": run.uid(), "born": 0, "parents": [], "ops": [
+                "seed_fsa" if (i == 0 and seed_genome is not None) else "init"]}
+            run.population.append(g)
+        if rundir is not None:
+            rundir.save_checkpoint({**run.state(), "seed_fsa_text": seed_text})
+    run.exported = False
+    last_plot = time.perf_counter()
 
-        def bred() -> None:  # runs as the last child is born, while the pool evaluates
-            nonlocal last_plot
-            if rundir is not None and run.generation % cfg.checkpoint_every == 0:
-                rundir.save_checkpoint(run.state())
-                if time.perf_counter() - last_plot > _PLOT_EVERY_S:  # drawing is slow
-                    rundir.plots([r.to_dict() for r in run.history], run.best_fsa())
-                    last_plot = time.perf_counter()
+    def save(fitness: list[float] | None = None) -> None:
+        assert rundir is not None
+        rundir.save_checkpoint({**run.state(fitness), "seed_fsa_text": seed_text})
 
-        children: Iterator[Genome] | None = None
-        while not solved and run.generation <= cfg.generations:
-            t = time.perf_counter()
-            fitness, episodes = run.evaluate(children)
-            rec = run.record(fitness, episodes, time.perf_counter() - t)
-            run.show_progress(rec)
-            if on_generation is not None:
-                on_generation(rec)
-            assert run.best is not None
-            solved = task.solved(run.best[1])
-            if solved and cfg.confirm_trials:
-                solved = run.confirm()
-            if solved or run.generation >= cfg.generations:
-                break
-            children = run.breed(fitness, bred)
-    finally:
-        evaluator.close()
-        if stream is not None:
-            stream.write("\n")
-            stream.flush()
-    assert run.best is not None
+    def bred() -> None:  # runs as the last child is born, while the pool evaluates
+        nonlocal last_plot
+        if rundir is not None and run.generation % cfg.checkpoint_every == 0:
+            save()
+            if time.perf_counter() - last_plot > _PLOT_EVERY_S:  # drawing is slow
+                rundir.plots([r.to_dict() for r in run.history], run.named(run.best_fsa()))
+                last_plot = time.perf_counter()
+
+    solved = run.best is not None and task.solved(run.best[1])
+    if not solved and (fitness is None or run.generation < cfg.generations):
+        limits = EvalLimits(cfg.eval_time_limit, cfg.worker_max_jobs, cfg.worker_max_growth_mb)
+        run.evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker,
+                                       limits)
+        try:
+            while not solved and (fitness is None or run.generation < cfg.generations):
+                children = run.breed(fitness, bred) if fitness is not None else None
+                t = time.perf_counter()
+                fitness, episodes = run.evaluate(children)
+                rec = run.record(fitness, episodes, time.perf_counter() - t)
+                run.show_progress(rec)
+                if on_generation is not None:
+                    on_generation(rec)
+                assert run.best is not None
+                solved = task.solved(run.best[1])
+                if solved and cfg.confirm_trials:
+                    solved = run.confirm()
+        finally:
+            run.evaluator.close()
+            run.close_progress()
+    assert run.best is not None and fitness is not None
+    if rundir is not None:  # the evolution is over: a kill from here on only redoes exports
+        save(fitness)
     best_genome, best_f, _ = run.best
     evolved = run.best_fsa()
     best = evolved
     if simplify_result:
-        best = simplify(task, evolved, seed=seed, trials=simplify_trials)
+        best = simplify(task, evolved, seed=seed, trials=simplify_used,
+                        time_limit=cfg.eval_time_limit)
         best = best.replace(meta={**evolved.meta, **best.meta}, name=evolved.name)
+    evolved, best = run.named(evolved), run.named(best)
+    fresh: dict[str, Any] = {}
+    if check_used > 0:
+        fresh = check_fresh(task, best, seed, check_used, cfg.eval_time_limit)
+        fresh["differs"] = fresh_differs(task, best_f, fresh["mean_fitness"])
+    faults = run.faults()
     files: list[Path] = []
     if rundir is not None:
-        rundir.save_checkpoint(run.state())
         rundir.write_best(evolved, task.registry, run.header(), rundir.best_evolved_yaml)
         rundir.write_best(best, task.registry, run.header())
         rundir.plots([r.to_dict() for r in run.history], best)
+        rundir.update_run_info({"result": {
+            "solved": task.solved(best_f),
+            "best_fitness": best_f,
+            "generations": run.generation,
+            "evaluations": run.evaluations,
+            "fresh": fresh,
+            "faults": faults.to_dict(),
+            "first_error": faults.first_error,
+        }})
+        run.exported = True  # last: a kill before this redoes only the exports
+        rundir.save_checkpoint({**run.state(fitness), "seed_fsa_text": seed_text,
+                                "best_yaml": dumps_fsa(best, task.registry), "fresh": fresh})
         files = [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
                  rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
     return EvolutionResult(
@@ -511,4 +913,26 @@ def evolve(
         seed=seed,
         out_dir=rundir.path if rundir is not None else None,
         files=files,
+        budget=cfg.generations,
+        run_command=run_command(str(rundir.best_yaml) if rundir else "FILE", record),
+        faults=faults,
+        fresh=fresh,
+    )
+
+
+def _unchanged(run: _Run, checkpoint: Mapping[str, Any], rundir: RunDir) -> EvolutionResult:
+    """The result of a run that had finished: read from its checkpoint, nothing written."""
+    assert run.best is not None
+    text = checkpoint.get("best_yaml")
+    evolved = run.named(run.best_fsa())
+    best = loads_fsa(text, str(rundir.checkpoint)) if isinstance(text, str) else evolved
+    fresh = checkpoint.get("fresh")
+    g, f, _ = run.best
+    return EvolutionResult(
+        best_fsa=best, best_fitness=f, solved=run.task.solved(f), generations=run.generation,
+        evaluations=run.evaluations, wall_time=run.wall_before, history=run.history,
+        evolved_fsa=evolved, best_genome=g, seed=run.seed, out_dir=rundir.path, files=[],
+        unchanged=True, budget=run.cfg.generations,
+        run_command=run_command(str(rundir.best_yaml), run.record_info),
+        faults=run.faults(), fresh=fresh if isinstance(fresh, dict) else {},
     )

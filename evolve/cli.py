@@ -1,19 +1,11 @@
-"""``skillcompose evolve``: evolve an FSA for a task from the command line.
-
-::
-
-    skillcompose evolve examples.toy_task --set p_fail=0.1 --generations 200 --out runs/toy
-    skillcompose evolve --resume runs/toy            # continue a killed run
-    skillcompose evolve examples.toy_task --seed-fsa edited.yaml --out runs/toy2
-
-Wired into ``skillcompose`` by :func:`register_cli`; ``main(argv)`` runs it on its own.
-"""
+"""``skillcompose evolve``: evolve an FSA for a task from the command line."""
 
 from __future__ import annotations
 
 import argparse
 import os
 import sys
+from pathlib import Path
 from typing import Any
 
 from skillcompose.errors import SkillcomposeError
@@ -23,9 +15,30 @@ from .algorithm import evolve
 from .config import PRESETS, EvolutionConfig
 from .errors import EvolutionError
 from .evaluation import BACKENDS
+from .resume import FREE_SETTINGS, check_record, load_recorded_task, normalise
 from .rundir import RunDir
 
 __all__ = ["add_arguments", "handle", "main", "register_cli"]
+
+DESCRIPTION = """\
+Evolve an FSA for a task with the paper's algorithm, and write what it finds as an FSA file
+you can read, edit, run and evolve again.
+
+examples:
+  skillcompose evolve examples.toy_task --set p_fail=0.1 --generations 200 --out runs/toy
+  skillcompose evolve --resume runs/toy                     continue a killed run
+  skillcompose evolve --resume runs/toy --generations 400   extend a run to 400 generations
+  skillcompose evolve examples.toy_task --seed-fsa edited.yaml --out runs/toy2
+
+A resumed run is the run it would have been without the interruption. It keeps its task,
+seed and settings: giving others is refused; only --generations (to extend it), --backend,
+--workers, --worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet may
+change. A finished run is left as it is.
+"""
+
+# options whose absence matters on --resume: None until given (a new run's defaults: seed 0,
+# preset paper, 200 simplification trials, 200 fresh episodes checked)
+_UNSET_UNTIL_GIVEN = ("seed", "preset", "simplify_trials", "check_trials")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -42,7 +55,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         whole,
     )
 
-    big = 10**7  # generations, individuals, trials: bounded, far beyond any real run
+    big = 10**7  # generations, individuals, jobs: bounded, far beyond any real run
     p.add_argument(
         "task", nargs="?", type=module_or_file,
         help="task module (dotted name or .py path) defining make_task(**settings); "
@@ -57,9 +70,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--initial-nodes", type=whole(1, 10_000),
                    help="initial nodes S (default 50, table 1)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="starting settings: paper (table 1, the default) or robust (our best "
+                   help="starting settings: paper (table 1, the default), robust (our best "
                    "options: N=600, 3 shared trials, elitism 2, tournament 3, S=12, sigma "
-                   "0.1, solutions confirmed on 20 fresh trials); the flags below override it")
+                   "0.1, solutions confirmed on 20 fresh trials) or push (for many "
+                   "parameters, e.g. a network's weights: N=150, 20 shared trials, "
+                   "every mutated node's parameters perturbed, confirmed on 200 fresh "
+                   "trials); the flags below override it")
     p.add_argument("--tournament", type=whole(1, 10**6), help="tournament size (default 2)")
     p.add_argument("--param-sigma", type=number(0.0, 1.0),
                    help="standard deviation of parameter noise in [0, 1] units, from 0 to 1 "
@@ -94,44 +110,136 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="export the best FSA as evolved, without simplification")
     p.add_argument("--simplify-trials", type=whole(1, MAX_TRIALS), default=200,
                    help="fresh trials per simplification test, at least 1 (default 200)")
+    p.add_argument("--check-trials", type=whole(0, MAX_TRIALS), default=200,
+                   help="fresh episodes on which the exported FSA is measured at the end "
+                   "(default 200; 0: none)")
+    p.add_argument("--eval-time-limit", type=number(0.0, 10.0**7), metavar="SECONDS",
+                   help="wall-clock limit of one evaluation; past it, it scores worst and "
+                   "counts as a time-out (default 60; 0: no limit)")
+    p.add_argument("--worker-max-jobs", type=whole(0, big), metavar="N",
+                   help="replace a worker after N evaluations (default 0: never)")
+    p.add_argument("--worker-max-growth-mb", type=number(0.0, 10.0**7), metavar="MB",
+                   help="replace a worker whose memory grew by more than MB (default 1024; "
+                   "0: never)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _config(args: argparse.Namespace) -> EvolutionConfig:
-    changes: dict[str, Any] = dict(PRESETS[args.preset])
-    for opt, name in (
-        ("generations", "generations"), ("population", "population"),
-        ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
-        ("tournament", "tournament"), ("param_sigma", "param_sigma"),
-        ("confirm_trials", "confirm_trials"),
-        ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
-    ):
+    changes: dict[str, Any] = dict(PRESETS[args.preset or "paper"])
+    changes.update(_given_settings(args))
+    return EvolutionConfig(**changes)
+
+
+_SETTING_OPTIONS = (
+    ("generations", "generations"), ("population", "population"),
+    ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
+    ("tournament", "tournament"), ("param_sigma", "param_sigma"),
+    ("confirm_trials", "confirm_trials"),
+    ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
+    ("worker_max_jobs", "worker_max_jobs"),
+    ("worker_max_growth_mb", "worker_max_growth_mb"),
+)
+
+
+def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The evolution settings given on the command line (not their defaults)."""
+    changes: dict[str, Any] = {}
+    for opt, name in _SETTING_OPTIONS:
         v = getattr(args, opt)
         if v is not None:
             changes[name] = v
+    if args.eval_time_limit is not None:
+        changes["eval_time_limit"] = args.eval_time_limit or None
     if args.crn:
         changes["common_random_numbers"] = True
     if args.cache:
         changes["cache"] = True
     if args.parsimony:
         changes["parsimony"] = True
-    return EvolutionConfig(**changes)
+    return changes
+
+
+def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[str]:
+    """The options given with --resume that would change the run, each with the run's
+    value."""
+    cfg = record["config"]
+    problems: list[str] = []
+
+    def differs(option: str, value: Any, recorded: Any, sep: str = " ") -> None:
+        if normalise(value) != normalise(recorded):
+            problems.append(f"{option}{sep}{value} (the run has {recorded})")
+
+    if args.task:
+        differs("TASK", args.task, record["task_module"])
+    if args.settings:
+        for k, v in parse_settings(args.settings).items():
+            differs(f"--set {k}", v, record["task_settings"].get(k, "no such setting"), "=")
+    if args.seed is not None:
+        differs("--seed", args.seed, record["seed"])
+    if args.seed_fsa is not None:
+        differs("--seed-fsa", args.seed_fsa, record["seed_fsa"])
+    if args.preset is not None:
+        for name, value in PRESETS[args.preset].items():
+            differs(f"--preset {args.preset}: {name} =", value, cfg.get(name))
+    if args.no_simplify and record["simplify"]:
+        problems.append("--no-simplify (the run simplifies its result)")
+    if args.simplify_trials is not None:
+        differs("--simplify-trials", args.simplify_trials, record["simplify_trials"])
+    if args.check_trials is not None:
+        differs("--check-trials", args.check_trials, record["check_trials"])
+    if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
+        problems.append(f"--out {args.out} (the run's directory is {args.resume})")
+    flags = {name: opt for opt, name in _SETTING_OPTIONS}
+    flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
+                 eval_time_limit="eval_time_limit")
+    for name, value in _given_settings(args).items():
+        if name in FREE_SETTINGS:
+            continue
+        if name == "eval_time_limit":  # None is `--eval-time-limit 0`: no limit
+            if normalise(value) != normalise(cfg.get(name)):
+                problems.append(f"--eval-time-limit {args.eval_time_limit:g} (the run has "
+                                f"{_limit_text(cfg.get(name))})")
+            continue
+        differs("--" + flags[name].replace("_", "-"), value, cfg.get(name))
+    return problems
+
+
+def _limit_text(limit: Any) -> str:
+    return "no limit" if limit is None else f"{limit:g} s" if isinstance(limit, (int, float)) \
+        else str(limit)
+
+
+def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
+    """The recorded task of the run in ``--resume DIR`` and the recorded settings, after
+    refusing anything given that would change the run."""
+    rundir = RunDir(args.resume)
+    checkpoint = rundir.load_checkpoint()
+    record = check_record(checkpoint.get("run"), str(rundir.checkpoint))
+    problems = _resume_conflicts(args, record)
+    if problems:
+        raise EvolutionError(
+            f"--resume {args.resume}: {'; '.join(problems)} would change the run; leave them "
+            "out (a resume may change only --generations, --backend, --workers, "
+            "--worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet)"
+        )
+    return load_recorded_task(record, args.resume), record
 
 
 def handle(args: argparse.Namespace) -> int:
     try:
         if args.resume:
+            task, record = _resume(args)
+            cfg = EvolutionConfig.from_dict(record["config"]).replace(**{
+                k: v for k, v in _given_settings(args).items() if k in FREE_SETTINGS})
             info = RunDir(args.resume).load_run_info()
-            module = args.task or info.get("task_module")
-            if not module:
-                raise EvolutionError(
-                    f"{args.resume}: the run's task module is unknown; give it: "
-                    f"skillcompose evolve TASK --resume {args.resume}"
-                )
-            task = load_task(module, **dict(info.get("task_settings") or {}))
-            cfg = None
-            backend = args.backend or info.get("backend") or "serial"
+            backend = args.backend or info.get("backend")
+            if backend not in BACKENDS:
+                backend = "serial"
             workers = args.workers if args.workers is not None else info.get("workers")
+            if isinstance(workers, bool) or not isinstance(workers, int) or \
+                    not 1 <= workers <= (os.cpu_count() or 1):
+                workers = None  # run.json is data from elsewhere: all cores at most
+            seed, simplify_result, simplify_trials, check_trials = None, None, None, None
         else:
             if not args.task:
                 raise EvolutionError(
@@ -143,26 +251,71 @@ def handle(args: argparse.Namespace) -> int:
             cores = args.workers or os.cpu_count() or 1
             backend = args.backend or ("process" if cores > 1 else "serial")
             workers = args.workers
+            seed = 0 if args.seed is None else args.seed
+            simplify_result = not args.no_simplify
+            simplify_trials = 200 if args.simplify_trials is None else args.simplify_trials
+            check_trials = 200 if args.check_trials is None else args.check_trials
         result = evolve(
-            task, cfg, seed=args.seed, workers=workers, backend=backend,
-            out_dir=None if args.resume else args.out, seed_fsa=args.seed_fsa,
+            task, cfg, seed=seed, workers=workers, backend=backend,
+            out_dir=None if args.resume else args.out,
+            seed_fsa=None if args.resume else args.seed_fsa,
             progress=not args.quiet, resume=args.resume,
-            simplify_result=not args.no_simplify, simplify_trials=args.simplify_trials,
+            simplify_result=simplify_result, simplify_trials=simplify_trials,
+            check_trials=check_trials,
         )
     except SkillcomposeError as exc:
         print(f"skillcompose evolve: error: {exc}", file=sys.stderr)
         return 2
     state = "solved" if result.solved else "not solved"
+    if result.unchanged:
+        why = "solved" if result.solved else (
+            f"not solved in its budget of {result.budget} generations")
+        print(
+            f"{args.resume}: the run finished in generation {result.generations} ({why}); "
+            "nothing was changed."
+            + ("" if result.solved else
+               f" Extend it with: skillcompose evolve --resume {args.resume} "
+               f"--generations {2 * max(result.budget, 1)}")
+        )
+        return 0
     print(
         f"{task.name}: {state}, best fitness {result.best_fitness:g} after "
         f"{result.generations} generations, {result.evaluations} evaluations, "
         f"{result.wall_time:.1f} s; best FSA has {len(result.best_fsa.states)} states "
         f"(evolved: {len(result.evolved_fsa.states)})"
     )
+    fresh = result.fresh
+    if fresh:
+        print(
+            f"the exported FSA on {fresh['episodes']} fresh episodes: "
+            f"{100 * fresh['success_rate']:.1f} % reach the target, mean fitness "
+            f"{fresh['mean_fitness']:g}"
+        )
+        if fresh["differs"]:
+            print(
+                f"warning: that differs from the evolved fitness {result.best_fitness:g}: "
+                "evolution measured it on its own few episodes; trust the fresh ones "
+                "(more trials per evaluation, --preset robust or --confirm N evolve FSAs "
+                "that hold)", file=sys.stderr,
+            )
+    faults = result.faults
+    if faults.total:
+        print(f"faults: {faults.describe()} in {faults.jobs} evaluations "
+              f"({faults.failed} failed entirely); per generation in history.jsonl",
+              file=sys.stderr)
+        if faults.first_error:
+            print(f"first error {faults.first_error}", file=sys.stderr)
     if result.files:
         print("files written:")
         for f in result.files:
             print(f"  {f}")
+        print(f"run it: {result.run_command}")
+    if result.nothing_succeeded:
+        print(
+            f"skillcompose evolve: error: every one of the {faults.jobs} evaluations failed "
+            "(see the first error above); fix the task or its skills", file=sys.stderr,
+        )
+        return 1
     return 0
 
 
@@ -170,10 +323,11 @@ def register_cli(subparsers: Any) -> None:
     """Add ``evolve`` to the ``skillcompose`` command."""
     p = subparsers.add_parser(
         "evolve", help="evolve an FSA for a task (the paper's algorithm)",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_arguments(p)
-    p.set_defaults(func=handle)
+    # None: not given, so that --resume can tell a given value from a default one
+    p.set_defaults(func=handle, **dict.fromkeys(_UNSET_UNTIL_GIVEN))
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -45,10 +45,26 @@ class EvolutionConfig:
       into its running mean (for noisy tasks); 0 reuses the cached mean as it is.
     - ``parsimony``: at equal fitness the genome with fewer states wins (selection, elites
       and the reported best).
+    - ``p_param``: probability that each node of a mutated child also gets parameter noise
+      (the node mutation's Gaussian rule, without re-routing an edge). The paper's node
+      mutation touches a node with probability ``p_mut``, so a network's weights change in
+      about one child in ten; tasks whose work is in the parameters (MoveBase's network)
+      need more. 0 (default) is the paper.
     - ``confirm_trials``: when the best genome reaches the task's target, it is run again on
       this many fresh worlds; the task counts as solved only if it reaches the target there
       too (otherwise its fitness becomes that mean and evolution goes on). Guards against a
       lucky solve on few trials.
+
+    Faults and limits (see docs/evolve.md, "Faults and limits"):
+
+    - ``eval_time_limit``: wall-clock seconds one evaluation (all its trials) may take; past
+      it the evaluation scores the task's worst fitness and counts as a time-out. ``None``:
+      no limit. Set it well above a normal evaluation's time, so that only a hanging skill
+      reaches it and the run stays the same on every machine.
+    - ``worker_max_jobs``: a pool worker (or Ray actor) is replaced by a fresh one after this
+      many evaluations (0: never); ``worker_max_growth_mb``: ... or once its resident memory
+      has grown by more than this many MB since it started (0: never). Replacing a worker
+      never changes results.
 
     Run bookkeeping: ``checkpoint_every`` generations between checkpoints of a run directory,
     ``terminal_weight`` the weight of each terminal outcome against one state when an edge
@@ -72,9 +88,13 @@ class EvolutionConfig:
     cache_refresh: int = 0
     parsimony: bool = False
     confirm_trials: int = 0
+    p_param: float = 0.0
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 4
+    eval_time_limit: float | None = 60.0
+    worker_max_jobs: int = 0
+    worker_max_growth_mb: float = 1024.0
 
     def __post_init__(self) -> None:
         problems: list[str] = []
@@ -98,7 +118,7 @@ class EvolutionConfig:
         whole("confirm_trials", 0)
         whole("checkpoint_every", 1)
         whole("chunks_per_worker", 1)
-        for name in ("p_mut", "p_cross", "p_add", "p_del"):
+        for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param"):
             prob(name)
         if self.trials is not None:
             whole("trials", 1)
@@ -107,6 +127,19 @@ class EvolutionConfig:
         if not isinstance(self.terminal_weight, (int, float)) or self.terminal_weight < 0:
             problems.append(
                 f"terminal_weight = {self.terminal_weight!r}: expected a number >= 0"
+            )
+        limit = self.eval_time_limit
+        if limit is not None and (
+            isinstance(limit, bool) or not isinstance(limit, (int, float)) or not limit > 0
+        ):
+            problems.append(
+                f"eval_time_limit = {limit!r}: expected seconds > 0, or None for no limit"
+            )
+        whole("worker_max_jobs", 0)
+        growth = self.worker_max_growth_mb
+        if isinstance(growth, bool) or not isinstance(growth, (int, float)) or growth < 0:
+            problems.append(
+                f"worker_max_growth_mb = {growth!r}: expected MB >= 0 (0: no limit)"
             )
         if isinstance(self.elitism, int) and isinstance(self.population, int) and \
                 self.elitism >= self.population:
@@ -147,10 +180,28 @@ PRESETS: dict[str, dict[str, Any]] = {
         "param_sigma": 0.1,
         "confirm_trials": 20,
     },
+    "push": {
+        "population": 150,
+        "trials": 20,
+        "common_random_numbers": True,
+        "elitism": 2,
+        "tournament": 3,
+        "initial_nodes": 12,
+        "param_sigma": 0.05,
+        "p_param": 1.0,
+        "confirm_trials": 200,
+    },
 }
 """Named settings: ``paper`` is table 1 as it is; ``robust`` is our best options, chosen on
 the pour-water task (see docs/results/pour_water.md): 600 individuals, each evaluation
 averaging 3 episodes that a whole generation shares, the two best surviving, tournaments of
 3, initial FSAs of 12 nodes, parameter noise 0.1, and a solution confirmed on 20 fresh
 episodes before the run stops. It selects FSAs that retry their failing skills rather than
-ones that won a lucky episode."""
+ones that won a lucky episode.
+
+``push`` is for tasks whose work is in a skill's many parameters, such as the network of
+moving to push (see docs/results/move_to_push.md): 150 individuals, 20 episodes per
+evaluation shared by the generation (a success rate near 0.95 must be told from one near
+0.85), the two best surviving, tournaments of 3, initial FSAs of 12 nodes, every mutated
+node's parameters perturbed (``p_param`` 1, noise 0.05), and a solution confirmed on 200
+fresh episodes."""

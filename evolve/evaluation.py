@@ -3,26 +3,44 @@
 An evaluation is a :class:`Job`: a genome, the seed of its worlds and a number of trials.
 The seed comes from the run seed and the job's place in the run (generation, individual),
 never from the worker, so a run gives the same fitnesses on any backend and any number of
-workers. A skill that raises, a task whose setup or fitness raises, or a worker that dies
-costs that evaluation (it scores the task's worst fitness), not the run.
+workers. A fault costs that evaluation (it scores the task's worst fitness), not the run,
+and is counted in the evaluator's :class:`Faults`, identically on every backend:
+
+- a skill, the task's world setup or its fitness raises (any exception, ``SystemExit``
+  included; only a real Ctrl-C stops the run): that episode scores worst;
+- the evaluation runs longer than its wall-clock limit: it scores worst (a pool or Ray
+  worker stuck where the limit cannot reach it is killed by the parent);
+- the job kills its worker process by itself (a segfault, ``os._exit``): it scores worst;
+  the other jobs the dead worker had not finished are run again, one by one.
+
+Pool workers and Ray actors are replaced after ``max_jobs`` jobs or once their memory has
+grown by more than ``max_growth_mb`` (a leaking skill), between two chunks of jobs: results
+do not change.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import math
 import multiprocessing
 import os
 import pickle
+import signal
+import sys
+import threading
+import time
 import traceback
 from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from multiprocessing.reduction import ForkingPickler
+from types import FrameType
 from typing import Any, NamedTuple, Protocol, cast
 
 import numpy as np
 
-from skillcompose.executor import trial_rngs
+from skillcompose.executor import CompiledFSA, error_summary, trial_rngs
 from skillcompose.task import Task, TaskRef
 
 from .errors import EvolutionError
@@ -30,16 +48,183 @@ from .genome import Genome, GenomeCompiler, SkillSet
 
 __all__ = [
     "BACKENDS",
+    "EvalLimits",
     "Evaluator",
+    "Faults",
+    "Guard",
     "Job",
     "ProcessEvaluator",
     "RayEvaluator",
     "SerialEvaluator",
+    "evaluate_episode",
     "evaluate_genome",
+    "evaluate_job",
     "make_evaluator",
 ]
 
 BACKENDS = ("serial", "process", "ray")
+
+# a job's fault code: (episodes that raised) << 2 | flags
+TIMED_OUT = 1
+LOST = 2
+_FLAGS = 2
+
+
+@dataclass(frozen=True)
+class EvalLimits:
+    """Bounds on one evaluation and on a worker.
+
+    - ``time_limit``: wall-clock seconds one evaluation (all its trials) may take; over it,
+      it scores the task's worst fitness and counts as a time-out. ``None``: no limit.
+    - ``max_jobs``: a pool worker or Ray actor is replaced after this many jobs (0: never).
+    - ``max_growth_mb``: ... or once its resident memory has grown by more than this many
+      MB since it started (0: never).
+    """
+
+    time_limit: float | None = None
+    max_jobs: int = 0
+    max_growth_mb: float = 0.0
+
+    @property
+    def kill_after(self) -> float | None:
+        """When the parent kills a worker whose job ignored the limit [s]."""
+        if self.time_limit is None:
+            return None
+        return self.time_limit + max(1.0, 0.1 * self.time_limit)
+
+
+@dataclass
+class Faults:
+    """What went wrong in some evaluations (one generation, or a whole run).
+
+    ``raised`` counts episodes, the others evaluations; ``worker_deaths`` counts worker
+    processes (or Ray actors) that died and were replaced, which depends on how jobs were
+    spread over workers (a job that kills its worker may kill another one when it is run
+    again alone); the rest are the same on every backend and number of workers.
+    """
+
+    jobs: int = 0  # evaluations run
+    failed: int = 0  # evaluations that scored worst in every episode because of faults
+    raised: int = 0  # episodes in which a skill, the world setup or the fitness raised
+    timeouts: int = 0  # evaluations stopped at the wall-clock limit
+    lost: int = 0  # evaluations that killed their worker by themselves
+    worker_deaths: int = 0
+    recycled: int = 0  # workers replaced on purpose (max_jobs, max_growth_mb): not a fault
+    first_error: str | None = None  # the first exception, summarised (job order)
+
+    COUNTS = ("raised", "timeouts", "lost", "worker_deaths")
+
+    @property
+    def total(self) -> int:
+        return self.raised + self.timeouts + self.lost + self.worker_deaths
+
+    def add(self, other: Faults) -> None:
+        for name in ("jobs", "failed", "raised", "timeouts", "lost", "worker_deaths",
+                     "recycled"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        if self.first_error is None:
+            self.first_error = other.first_error
+
+    def count(self, code: int, trials: int) -> None:
+        """Add one job's fault code."""
+        self.jobs += 1
+        raised = code >> _FLAGS
+        self.raised += raised
+        if code & TIMED_OUT:
+            self.timeouts += 1
+        if code & LOST:
+            self.lost += 1
+        if code & (TIMED_OUT | LOST) or raised >= trials:
+            self.failed += 1
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "jobs": self.jobs, "failed": self.failed, "raised": self.raised,
+            "timeouts": self.timeouts, "lost": self.lost, "worker_deaths": self.worker_deaths,
+            "recycled": self.recycled,
+        }
+
+    def describe(self) -> str:
+        """``3 raised, 1 time-out`` (empty when there were none)."""
+        words = (("raised", "raised", "raised"), ("timeouts", "time-out", "time-outs"),
+                 ("lost", "lost", "lost"), ("worker_deaths", "worker death", "worker deaths"))
+        parts = []
+        for name, one, many in words:
+            n = getattr(self, name)
+            if n:
+                parts.append(f"{n} {one if n == 1 else many}")
+        return ", ".join(parts)
+
+
+class _TimeUp(BaseException):
+    """Raised into a running evaluation when its wall-clock limit passes."""
+
+
+class Guard:
+    """Enforces the wall-clock limit of an evaluation, and tells a real Ctrl-C from a
+    ``KeyboardInterrupt`` that a skill raised.
+
+    Works through ``SIGALRM`` and ``SIGINT`` handlers, so only in the main thread of a
+    process (elsewhere :meth:`install` leaves it inactive: no limit). While installed, an
+    interval timer ticks every quarter of the limit (at most every second); a tick that
+    finds the armed evaluation past its limit raises into it, and so does every later tick
+    until it is disarmed (a skill that catches the first one gets the next). Arming and
+    disarming an evaluation only note the time: no system call per evaluation.
+    """
+
+    def __init__(self, time_limit: float | None) -> None:
+        self.time_limit = time_limit
+        self.active = False
+        self.armed = False
+        self.started = 0.0
+        self.interrupted = False
+        self.tracks_interrupts = False
+        self._old: list[tuple[int, Any]] = []
+
+    def install(self) -> Guard:
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        self.interrupted = False
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self._old = [(signal.SIGINT, signal.signal(signal.SIGINT, self._on_interrupt))]
+            self.tracks_interrupts = True
+        if self.time_limit is not None and hasattr(signal, "setitimer"):
+            self._old.append((signal.SIGALRM, signal.signal(signal.SIGALRM, self._on_alarm)))
+            tick = min(1.0, self.time_limit / 4)
+            signal.setitimer(signal.ITIMER_REAL, tick, tick)
+            self.active = True
+        return self
+
+    def uninstall(self) -> None:
+        self.armed = False
+        if self.active:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+        self.active = self.tracks_interrupts = False
+        for sig, handler in reversed(self._old):
+            signal.signal(sig, handler)
+        self._old = []
+
+    def __enter__(self) -> Guard:
+        return self.install()
+
+    def __exit__(self, *exc: object) -> None:
+        self.uninstall()
+
+    def arm(self) -> None:
+        self.started = time.monotonic()
+        self.armed = self.active
+
+    def disarm(self) -> None:
+        self.armed = False
+
+    def _on_alarm(self, signum: int, frame: FrameType | None) -> None:
+        if self.armed and self.time_limit is not None and \
+                time.monotonic() - self.started > self.time_limit:
+            raise _TimeUp
+
+    def _on_interrupt(self, signum: int, frame: FrameType | None) -> None:
+        self.interrupted = True
+        raise KeyboardInterrupt
 
 
 class Job(NamedTuple):
@@ -58,25 +243,100 @@ class Job(NamedTuple):
         return cls(genome.encode(), seed, spawn_key, trials)
 
 
-def evaluate_genome(task: Task, compiler: GenomeCompiler, job: Job) -> float:
-    """Mean fitness of one job; a failure of any kind scores the task's worst fitness."""
-    try:
-        compiled = compiler.compile(Genome.decode(job.genome))
-    except Exception:
-        return task.worst
-    seq = np.random.SeedSequence(job.seed, spawn_key=job.spawn_key)
+def _user_interrupt(exc: BaseException, guard: Guard | None) -> bool:
+    """A Ctrl-C of the person running evolution (not a skill raising KeyboardInterrupt)."""
+    return isinstance(exc, KeyboardInterrupt) and (
+        guard is None or guard.interrupted or not guard.tracks_interrupts
+    )
+
+
+def evaluate_job(
+    task: Task, compiler: GenomeCompiler, job: Job, guard: Guard | None = None,
+    explain: bool = True,
+) -> tuple[float, int, str | None]:
+    """Mean fitness of one job, its fault code, and (when ``explain``) a summary of its
+    first exception. Any fault costs the episode (a time-out: the whole job) the task's
+    worst fitness."""
+    worst = task.worst
+    raised = 0
+    first: str | None = None
     total = 0.0
-    for rng in trial_rngs(seq, job.trials):
+    try:
         try:
+            if guard is not None:
+                guard.arm()
+            try:
+                compiled = compiler.compile(Genome.decode(job.genome))
+            except _TimeUp:
+                raise
+            except BaseException as exc:
+                if _user_interrupt(exc, guard):
+                    raise
+                return worst, job.trials << _FLAGS, error_summary(exc) if explain else None
+            seq = np.random.SeedSequence(job.seed, spawn_key=job.spawn_key)
+            for rng in trial_rngs(seq, job.trials):
+                try:
+                    bb = task.setup(rng)
+                    res = compiled.run(bb, rng)
+                    if res.error is not None:
+                        raised += 1
+                        if explain and first is None:
+                            first = error_summary(res.error)
+                        f = worst
+                    else:
+                        f = task.score(res, bb)
+                except _TimeUp:
+                    raise
+                except BaseException as exc:
+                    if _user_interrupt(exc, guard):
+                        raise
+                    raised += 1
+                    if explain and first is None:
+                        first = error_summary(exc)
+                    f = worst
+                if math.isnan(f):
+                    f = worst
+                total += f
+        finally:
+            if guard is not None:
+                guard.disarm()
+    except _TimeUp:
+        if guard is not None:
+            guard.disarm()
+        return worst, TIMED_OUT | raised << _FLAGS, first
+    return total / job.trials, raised << _FLAGS, first
+
+
+def evaluate_episode(
+    task: Task, compiled: CompiledFSA, rng: np.random.Generator, guard: Guard
+) -> tuple[float, int]:
+    """One episode of a compiled FSA under ``guard``'s time limit: its fitness and fault
+    code (as :func:`evaluate_job`'s)."""
+    try:
+        try:
+            guard.arm()
             bb = task.setup(rng)
             res = compiled.run(bb, rng)
+            if res.error is not None:
+                return task.worst, 1 << _FLAGS
             f = task.score(res, bb)
-        except Exception:
-            f = task.worst
-        if math.isnan(f):
-            f = task.worst
-        total += f
-    return total / job.trials
+            return (task.worst if math.isnan(f) else f), 0
+        except _TimeUp:
+            raise
+        except BaseException as exc:
+            if _user_interrupt(exc, guard):
+                raise
+            return task.worst, 1 << _FLAGS
+        finally:
+            guard.disarm()
+    except _TimeUp:
+        guard.disarm()
+        return task.worst, TIMED_OUT
+
+
+def evaluate_genome(task: Task, compiler: GenomeCompiler, job: Job) -> float:
+    """Mean fitness of one job; a failure of any kind scores the task's worst fitness."""
+    return evaluate_job(task, compiler, job, explain=False)[0]
 
 
 class Evaluator(Protocol):
@@ -85,9 +345,11 @@ class Evaluator(Protocol):
     ``jobs`` may be a list or any iterable, such as a generator that breeds the jobs as it
     goes: a pool starts evaluating the first ones while the rest are still being made.
     ``expected`` is how many jobs an iterable will give, if known (for chunk sizes).
+    ``faults`` describes the last call's jobs.
     """
 
     workers: int
+    faults: Faults
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]: ...
 
@@ -95,18 +357,34 @@ class Evaluator(Protocol):
 
 
 class SerialEvaluator:
-    """Evaluates in this process."""
+    """Evaluates in this process (the wall-clock limit needs its main thread)."""
 
-    def __init__(self, task: Task, skills: SkillSet) -> None:
+    def __init__(
+        self, task: Task, skills: SkillSet, limits: EvalLimits | None = None
+    ) -> None:
         self.task = task
         self.compiler = GenomeCompiler(task, skills)
         self.workers = 1
+        self.limits = limits or EvalLimits()
+        self.faults = Faults()
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]:
         # all jobs first, then all evaluations: interleaving them in one process measured
         # slower (about 10 %) (the two loops evict each other's code and data from the caches)
         jobs = list(jobs)
-        return [evaluate_genome(self.task, self.compiler, j) for j in jobs]
+        faults = Faults()
+        out: list[float] = []
+        task, compiler = self.task, self.compiler
+        with Guard(self.limits.time_limit) as guard:
+            for j in jobs:
+                f, code, error = evaluate_job(task, compiler, j, guard,
+                                              faults.first_error is None)
+                out.append(f)
+                faults.count(code, j.trials)
+                if error is not None and faults.first_error is None:
+                    faults.first_error = error
+        self.faults = faults
+        return out
 
     def close(self) -> None:
         pass
@@ -114,6 +392,7 @@ class SerialEvaluator:
 
 # -- process pool ------------------------------------------------------------------------
 _WORKER: tuple[Task, GenomeCompiler] | None = None
+_RECYCLE = "recycle"
 
 
 def _init_worker(source: TaskRef | Task, terminals: tuple[str, ...]) -> None:
@@ -121,6 +400,36 @@ def _init_worker(source: TaskRef | Task, terminals: tuple[str, ...]) -> None:
     global _WORKER
     task = source.build() if isinstance(source, TaskRef) else source
     _WORKER = (task, GenomeCompiler(task, SkillSet.from_task(task, terminals)))
+
+
+def _rss_mb() -> float:
+    """This process's resident memory [MB] (0 where it cannot be read)."""
+    try:
+        with open("/proc/self/statm", "rb") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError, AttributeError):
+        try:
+            import resource
+
+            return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        except ImportError:  # pragma: no cover - platforms without resource
+            return 0.0
+
+
+class _Recycler:
+    """Counts a worker's jobs and memory; says when it should be replaced."""
+
+    def __init__(self, limits: EvalLimits) -> None:
+        self.max_jobs = limits.max_jobs
+        self.max_growth_mb = limits.max_growth_mb
+        self.jobs = 0
+        self.base_mb = _rss_mb() if limits.max_growth_mb else 0.0
+
+    def worn(self, jobs: int) -> bool:
+        self.jobs += jobs
+        if self.max_jobs and self.jobs >= self.max_jobs:
+            return True
+        return bool(self.max_growth_mb) and _rss_mb() - self.base_mb > self.max_growth_mb
 
 
 def _chunks(jobs: Sequence[Job], n: int) -> list[list[Job]]:
@@ -145,26 +454,89 @@ def _pack(jobs: Sequence[Job]) -> bytes:
     return pickle.dumps([tuple(j) for j in jobs], protocol=pickle.HIGHEST_PROTOCOL)
 
 
+class _Shared(NamedTuple):
+    """Shared memory of a pool: per job position its fitness and fault code; per worker
+    slot the position of the job it runs (-1: none) and when that job started
+    (``time.monotonic``, the same clock in every process)."""
+
+    results: Any
+    codes: Any
+    running: Any
+    since: Any
+
+
 def _run_packed(
-    task: Task, compiler: GenomeCompiler, at: int, payload: bytes, results: Any
-) -> None:
-    for i, job in enumerate(pickle.loads(payload)):
-        results[at + i] = evaluate_genome(task, compiler, Job._make(job))
+    task: Task, compiler: GenomeCompiler, at: int, payload: bytes, shared: _Shared, slot: int,
+    guard: Guard, first: list[tuple[int, str]],
+) -> int:
+    """Run a chunk, writing each fitness and fault code as soon as it is known; note the
+    first exception (``first``: empty until one is found). Returns the chunk's length."""
+    results, codes, running, since = shared
+    jobs = pickle.loads(payload)
+    for i, job in enumerate(jobs):
+        since[slot] = time.monotonic()
+        running[slot] = at + i
+        f, code, error = evaluate_job(task, compiler, Job._make(job), guard, not first)
+        results[at + i] = f
+        codes[at + i] = code
+        running[slot] = -1
+        if error is not None and not first:
+            first.append((at + i, error))
+    return len(jobs)
+
+
+def _die_with_parent(parent_pid: int, inherited: Sequence[int]) -> None:
+    """Make this worker end when the process that started it ends, however it ends
+    (``kill -9`` included), even in the middle of a skill that never returns.
+
+    Linux: the kernel kills it (``PR_SET_PDEATHSIG``). Elsewhere a thread watches for the
+    parent to go. Either way the worker also closes its copies of the parent's ends of the
+    pipes (its own and those of the workers forked before it), so a worker waiting for a
+    message sees the end of the file when the parent is gone.
+    """
+    if inherited:  # /dev/null over them: the numbers stay taken until their objects close
+        null = os.open(os.devnull, os.O_RDWR)
+        for fd in inherited:
+            with contextlib.suppress(OSError):
+                os.dup2(null, fd)
+        os.close(null)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0:
+                if os.getppid() != parent_pid:  # the parent died before the call
+                    os._exit(1)
+                return
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 
 
 def _worker_main(
     conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...], cpu: int | None,
-    counter: Any, results: Any,
+    counter: Any, shared: _Shared, slot: int, limits: EvalLimits, parent_pid: int = 0,
+    inherited: Sequence[int] = (),
 ) -> None:
     """A worker process: build the task, say so, then serve batches until told to stop.
 
     Every worker gets every message of a batch, in order: ``("batch", id)``, then chunks
     ``(k, position of its first job, packed jobs)`` as the parent makes them, then
     ``("end", number of chunks)``. A worker claims chunk numbers from the shared
-    ``counter`` (reading messages until its chunk has come), writes each fitness into the
-    shared ``results`` at its job's position as soon as it has it (so a worker that dies
-    keeps what it finished), and answers ``id`` once it claims a number past the end.
+    ``counter`` (reading messages until its chunk has come), writes each fitness and fault
+    code into ``shared`` at its job's position as soon as it has it (so a worker that dies
+    keeps what it finished), and answers ``(id, first exception)`` once it claims a number
+    past the end. A worker that has served its ``limits`` answers ``"recycle"`` between two
+    chunks instead, and exits: the parent puts a fresh one in its place.
     """
+    if parent_pid:
+        _die_with_parent(parent_pid, inherited)
     if cpu is not None:  # one worker per core: measured 1.2x -> 1.4x on 2 cores
         with contextlib.suppress(OSError, AttributeError):
             os.sched_setaffinity(0, {cpu})
@@ -178,6 +550,8 @@ def _worker_main(
     if _WORKER is None:  # pragma: no cover - the initializer always sets it
         return
     task, compiler = _WORKER
+    guard = Guard(limits.time_limit).install()
+    recycler = _Recycler(limits)
     conn.send(("ready", None))
     lock = counter.get_lock()
     while True:
@@ -189,6 +563,7 @@ def _worker_main(
             return
         batch = message[1]
         chunks: list[tuple[int, int, bytes]] = []
+        first: list[tuple[int, str]] = []
         ended = False
         while True:
             with lock:
@@ -203,13 +578,17 @@ def _worker_main(
             if k >= len(chunks):
                 break
             _, at, payload = chunks[k]
-            _run_packed(task, compiler, at, payload, results)
-        conn.send(batch)
+            done = _run_packed(task, compiler, at, payload, shared, slot, guard, first)
+            if recycler.worn(done):
+                conn.send((_RECYCLE, first[0] if first else None))
+                return
+        conn.send((batch, first[0] if first else None))
 
 
 class _Worker(NamedTuple):
     process: Any
     conn: Connection
+    slot: int
 
 
 class ProcessEvaluator:
@@ -229,15 +608,21 @@ class ProcessEvaluator:
     batch goes on; the jobs it had not finished are run again one by one: only a job that
     kills its worker by itself scores the task's worst fitness, so results never depend on
     how jobs were chunked or on how many workers there are. ``lost`` counts such jobs.
+
+    With a wall-clock limit, each worker stops its own evaluations at the limit; a worker
+    whose job runs past it anyway (stuck where signals cannot reach) is killed by the
+    parent, that job scores worst as a time-out, and the rest go on as after a death.
     """
 
     def __init__(
-        self, task: Task, skills: SkillSet, workers: int | None = None, chunks_per_worker: int = 4
+        self, task: Task, skills: SkillSet, workers: int | None = None,
+        chunks_per_worker: int = 4, limits: EvalLimits | None = None,
     ) -> None:
         self.task = task
         self.workers = workers or os.cpu_count() or 1
         self.chunks_per_worker = chunks_per_worker  # kept for the API; chunks are guided
         self.terminals = skills.terminals
+        self.limits = limits or EvalLimits()
         methods = multiprocessing.get_all_start_methods()
         if task.ref is None and "fork" not in methods:
             raise EvolutionError(
@@ -248,7 +633,8 @@ class ProcessEvaluator:
         self._ctx: Any = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
         self._source: TaskRef | Task = task.ref if task.ref is not None else task
         self._pool: list[_Worker] = []
-        self.lost = 0  # jobs that killed their worker process
+        self.lost = 0  # jobs that killed their worker process, over the evaluator's life
+        self.faults = Faults()
         try:
             self._cpus: list[int] = sorted(os.sched_getaffinity(0))
         except AttributeError:  # pragma: no cover - platforms without CPU affinity
@@ -256,15 +642,32 @@ class ProcessEvaluator:
         self._spawned = 0
         self._batch = 0
         self._counter: Any = self._ctx.Value("q", 0)
-        self._results: Any = self._ctx.RawArray("d", 0)
+        self._shared = self._allocate(0)
+        self._killed: set[int] = set()  # pids the parent killed for running over time
+        self._errors: list[tuple[int, str]] = []
+        self._deaths = 0
+        self._recycled = 0
 
-    def _spawn(self) -> _Worker:
+    def _allocate(self, capacity: int) -> _Shared:
+        slots = self.workers
+        running = self._ctx.RawArray("q", slots)
+        running[:] = [-1] * slots
+        return _Shared(self._ctx.RawArray("d", capacity), self._ctx.RawArray("q", capacity),
+                       running, self._ctx.RawArray("d", slots))
+
+    def _spawn(self, slot: int) -> _Worker:
         parent, child = self._ctx.Pipe()
         cpu = self._cpus[self._spawned % len(self._cpus)] if self._cpus else None
         self._spawned += 1
+        self._shared.running[slot] = -1
+        # with fork, the worker inherits the parent's ends of all pipes: it closes them
+        inherited = [parent.fileno(), *(w.conn.fileno() for w in self._pool
+                                        if not w.conn.closed)]
         proc = self._ctx.Process(
             target=_worker_main,
-            args=(child, self._source, self.terminals, cpu, self._counter, self._results),
+            args=(child, self._source, self.terminals, cpu, self._counter, self._shared,
+                  slot, self.limits, os.getpid(),
+                  inherited if self._ctx.get_start_method() == "fork" else []),
             daemon=True,
         )
         proc.start()
@@ -278,17 +681,20 @@ class ProcessEvaluator:
             raise EvolutionError(
                 f"an evaluation worker could not build task {self.task.name}:\n{detail}"
             )
-        return _Worker(proc, parent)
+        return _Worker(proc, parent, slot)
 
     def _workers(self, capacity: int) -> list[_Worker]:
-        if len(self._results) < capacity:  # shared memory is handed to workers as they start
+        if len(self._shared.results) < capacity:  # shared memory goes to workers at start
             self.close()
-            old = self._results
-            self._results = self._ctx.RawArray("d", max(1024, 2 * capacity))
-            self._results[:len(old)] = old[:]
+            old = self._shared
+            self._shared = self._allocate(max(1024, 2 * capacity))
+            self._shared.results[:len(old.results)] = old.results[:]
+            self._shared.codes[:len(old.codes)] = old.codes[:]
         self._pool = [w for w in self._pool if w.process.is_alive()]
-        while len(self._pool) < self.workers:
-            self._pool.append(self._spawn())
+        used = {w.slot for w in self._pool}
+        for slot in range(self.workers):
+            if slot not in used:
+                self._pool.append(self._spawn(slot))
         return self._pool
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]:
@@ -297,9 +703,11 @@ class ProcessEvaluator:
         source = iter(jobs)
         kept: list[Job] = []
         left: list[int] = []
+        self._errors = []
+        self._deaths = self._recycled = 0
         while True:  # a batch per size of shared memory: more than one only if it grows
             self._workers(max(total, len(kept) + 1))
-            room = len(self._results)
+            room = len(self._shared.results)
             first = next(source, None)
             if first is None:
                 break
@@ -327,16 +735,24 @@ class ProcessEvaluator:
                 break
         if left:  # what a dead worker did not finish, each job on its own
             left = self._run_batch(iter([(p, [kept[p]]) for p in left]))
-        out: list[float] = self._results[:len(kept)]
+        results, codes = self._shared.results, self._shared.codes
+        out: list[float] = results[:len(kept)]
         for p in left:  # these killed their worker by themselves
             out[p] = self.task.worst
+            codes[p] = LOST
         self.lost += len(left)
+        faults = Faults(worker_deaths=self._deaths, recycled=self._recycled)
+        for p, job in enumerate(kept):
+            faults.count(codes[p], job.trials)
+        if self._errors:
+            faults.first_error = min(self._errors)[1]
+        self.faults = faults
         return out
 
     def _run_batch(self, chunks: Iterator[tuple[int, list[Job]]]) -> list[int]:
         """Run the (position, jobs) chunks as one batch, sending each to every worker as it
         comes; the positions of the jobs no worker finished."""
-        results = self._results
+        results, codes = self._shared.results, self._shared.codes
         self._batch += 1
         with self._counter.get_lock():
             self._counter.value = 0
@@ -344,31 +760,65 @@ class ProcessEvaluator:
         sent: list[memoryview] = [ForkingPickler.dumps(("batch", self._batch))]
         active: dict[Connection, _Worker] = {}
         spans: list[tuple[int, int]] = []
+        kill_after = self.limits.kill_after
+        tick = None if kill_after is None else min(1.0, kill_after / 4)
         try:
             for worker in list(self._pool):
                 worker = self._join(worker, sent)
                 active[worker.conn] = worker
             for k, (at, chunk) in enumerate(chunks):
                 results[at:at + len(chunk)] = [math.nan] * len(chunk)
+                codes[at:at + len(chunk)] = [0] * len(chunk)
                 spans.append((at, len(chunk)))
                 self._broadcast((k, at, _pack(chunk)), sent, active)
             self._broadcast(("end", len(spans)), sent, active)
             while active:
-                for ready in wait(list(active)):
+                ready_now = wait(list(active), tick)
+                if not ready_now and kill_after is not None:
+                    self._kill_overdue(active.values(), kill_after)
+                for ready in ready_now:
                     conn = cast(Connection, ready)
                     worker = active.pop(conn)
                     try:
-                        answer = conn.recv()
+                        answer, error = conn.recv()
                     except (EOFError, OSError):  # it died: a fresh one joins the batch
+                        self._buried(worker)
                         fresh = self._join(self._replace(worker), sent)
                         active[fresh.conn] = fresh
                         continue
-                    if answer != self._batch:  # pragma: no cover - a protocol error
+                    if error is not None:
+                        self._errors.append(error)
+                    if answer == _RECYCLE:  # it has served its jobs or memory
+                        self._recycled += 1
+                        fresh = self._join(self._replace(worker), sent)
+                        active[fresh.conn] = fresh
+                    elif answer != self._batch:  # pragma: no cover - a protocol error
                         raise EvolutionError(f"worker answered batch {answer}, not {self._batch}")
         except BaseException:  # interrupted: no worker may be left half-way through a batch
             self._terminate()
             raise
         return [p for at, n in spans for p in range(at, at + n) if math.isnan(results[p])]
+
+    def _kill_overdue(self, workers: Iterable[_Worker], kill_after: float) -> None:
+        """Kill each worker whose job has run past the limit without stopping: that job
+        scores worst as a time-out; the worker's death is then handled as any other."""
+        shared = self._shared
+        now = time.monotonic()
+        for w in workers:
+            p = shared.running[w.slot]
+            if p >= 0 and now - shared.since[w.slot] > kill_after and \
+                    w.process.pid not in self._killed:
+                self._killed.add(w.process.pid)
+                w.process.kill()
+                shared.results[p] = self.task.worst
+                shared.codes[p] = TIMED_OUT
+
+    def _buried(self, worker: _Worker) -> None:
+        """Count a worker found dead (one the parent killed for time is no death)."""
+        if worker.process.pid in self._killed:
+            self._killed.discard(worker.process.pid)
+        else:
+            self._deaths += 1
 
     def _broadcast(
         self, message: Any, sent: list[memoryview], active: dict[Connection, _Worker]
@@ -380,6 +830,7 @@ class ProcessEvaluator:
         for conn, worker in list(active.items()):
             if not self._send(worker, data):
                 del active[conn]
+                self._buried(worker)
                 fresh = self._join(self._replace(worker), sent)
                 active[fresh.conn] = fresh
 
@@ -387,6 +838,7 @@ class ProcessEvaluator:
         """Have ``worker`` (or a fresh one, if it dies) join the running batch: send it every
         message of the batch so far."""
         while not all(self._send(worker, m) for m in sent):
+            self._buried(worker)
             worker = self._replace(worker)
         return worker
 
@@ -398,10 +850,10 @@ class ProcessEvaluator:
         except (BrokenPipeError, OSError):
             return False
 
-    def _replace(self, dead: _Worker) -> _Worker:
-        self._discard(dead)
-        fresh = self._spawn()
-        self._pool = [fresh if w is dead else w for w in self._pool]
+    def _replace(self, old: _Worker) -> _Worker:
+        self._discard(old)
+        fresh = self._spawn(old.slot)
+        self._pool = [fresh if w is old else w for w in self._pool]
         return fresh
 
     @staticmethod
@@ -436,10 +888,18 @@ class RayEvaluator:
 
     Needs the optional extra: ``pip install skillcompose[ray]``. Connects to a running
     cluster when ``RAY_ADDRESS`` is set, else starts a local one.
+
+    As on the process pool, an actor that dies is replaced and the jobs of its chunks are
+    run again one by one, each on a fresh actor, so only a job that kills its actor by
+    itself scores worst. With a wall-clock limit, an actor whose chunk overruns what its
+    jobs' limits allow is killed and its chunk run again job by job, each job given the
+    limit (a job that overruns it alone scores worst as a time-out). Actors are replaced
+    after ``max_jobs`` jobs or ``max_growth_mb`` of memory growth.
     """
 
     def __init__(
-        self, task: Task, skills: SkillSet, workers: int | None = None, chunks_per_worker: int = 4
+        self, task: Task, skills: SkillSet, workers: int | None = None,
+        chunks_per_worker: int = 4, limits: EvalLimits | None = None,
     ) -> None:
         try:
             import ray
@@ -459,32 +919,96 @@ class RayEvaluator:
         self.task = task
         self.workers = workers or int(ray.available_resources().get("CPU", 1)) or 1
         self.chunks_per_worker = chunks_per_worker
+        self.limits = limits or EvalLimits()
         self._actor_cls = ray.remote(_RayWorker)
         self._ref = task.ref
         self._terminals = skills.terminals
-        self._actors = [self._new_actor() for _ in range(self.workers)]
+        self._actors = [self._new_actor(ready=False) for _ in range(self.workers)]
+        ray.get([a.ready.remote() for a in self._actors])
         self.lost = 0
+        self.faults = Faults()
 
-    def _new_actor(self) -> Any:
-        return self._actor_cls.remote(self._ref, self._terminals)
+    def _new_actor(self, ready: bool = True) -> Any:
+        actor: Any = self._actor_cls.remote(self._ref, self._terminals, self.limits)
+        if ready:  # built: its start does not count against a job's time
+            self._ray.get(actor.ready.remote())
+        return actor
+
+    def _renew(self, a: int) -> None:
+        with contextlib.suppress(Exception):
+            self._ray.kill(self._actors[a])
+        self._actors[a] = self._new_actor()
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]:
+        ray = self._ray
         jobs = list(jobs)
+        faults = Faults()
+        self.faults = faults
         if not jobs:
             return []
+        out = [math.nan] * len(jobs)
+        codes = [0] * len(jobs)
+        errors: list[tuple[int, str]] = []
         chunks = _chunks(jobs, self.workers * self.chunks_per_worker)
-        refs = [
-            (k % len(self._actors), self._actors[k % len(self._actors)].run.remote(c))
-            for k, c in enumerate(chunks)
-        ]
-        out: list[float] = []
-        for chunk, (a, ref) in zip(chunks, refs, strict=True):
+        starts = [sum(len(c) for c in chunks[:k]) for k in range(len(chunks))]
+        per_job = self.limits.kill_after
+        t0 = time.monotonic()
+        queued = [0] * len(self._actors)  # jobs sent to each actor so far
+        refs = []
+        for k, c in enumerate(chunks):
+            a = k % len(self._actors)
+            queued[a] += len(c)
+            deadline = None if per_job is None else queued[a] * per_job
+            refs.append((a, self._actors[a].run.remote(c, starts[k]), deadline))
+        again: list[int] = []
+        broken: set[int] = set()  # actors found dead or killed in this call
+        for k, (a, ref, deadline) in enumerate(refs):
+            if a in broken:  # chunks queued behind a dead actor: run them job by job
+                again += range(starts[k], starts[k] + len(chunks[k]))
+                continue
             try:
-                out.extend(self._ray.get(ref))
-            except Exception:  # the actor died (RayActorError) or the task raised
-                self.lost += len(chunk)
-                out.extend([self.task.worst] * len(chunk))
-                self._actors[a] = self._new_actor()
+                wait_s = None if deadline is None else max(0.0, t0 + deadline - time.monotonic())
+                fitness, chunk_codes, error, worn = ray.get(ref, timeout=wait_s)
+            except Exception as exc:  # the actor died (RayActorError) or overran its time
+                broken.add(a)
+                if not isinstance(exc, ray.exceptions.GetTimeoutError):
+                    faults.worker_deaths += 1
+                again += range(starts[k], starts[k] + len(chunks[k]))
+                continue
+            out[starts[k]:starts[k] + len(fitness)] = fitness
+            codes[starts[k]:starts[k] + len(fitness)] = chunk_codes
+            if error is not None:
+                errors.append(error)
+            if worn:
+                broken.add(a)
+                faults.recycled += 1
+        for a in sorted(broken):
+            self._renew(a)
+        for p in again:  # each job alone on a sound actor
+            actor = self._actors[0]
+            try:
+                fitness, chunk_codes, error, worn = ray.get(
+                    actor.run.remote([jobs[p]], p), timeout=per_job
+                )
+            except Exception as exc:
+                if isinstance(exc, ray.exceptions.GetTimeoutError):
+                    out[p], codes[p] = self.task.worst, TIMED_OUT
+                else:
+                    faults.worker_deaths += 1
+                    out[p], codes[p] = self.task.worst, LOST
+                    self.lost += 1
+                self._renew(0)
+                continue
+            out[p], codes[p] = fitness[0], chunk_codes[0]
+            if error is not None:
+                errors.append(error)
+            if worn:
+                faults.recycled += 1
+                self._renew(0)
+        for p, job in enumerate(jobs):
+            faults.count(codes[p], job.trials)
+        if errors:
+            faults.first_error = min(errors)[1]
         return out
 
     def close(self) -> None:
@@ -495,21 +1019,41 @@ class RayEvaluator:
 
 
 class _RayWorker:
-    def __init__(self, ref: TaskRef, terminals: tuple[str, ...]) -> None:
+    def __init__(self, ref: TaskRef, terminals: tuple[str, ...], limits: EvalLimits) -> None:
         self.task = ref.build()
         self.compiler = GenomeCompiler(self.task, SkillSet.from_task(self.task, terminals))
+        self.guard = Guard(limits.time_limit).install()
+        self.recycler = _Recycler(limits)
 
-    def run(self, jobs: list[Job]) -> list[float]:
-        return [evaluate_genome(self.task, self.compiler, j) for j in jobs]
+    def ready(self) -> bool:
+        return True
+
+    def run(
+        self, jobs: list[Job], at: int
+    ) -> tuple[list[float], list[int], tuple[int, str] | None, bool]:
+        """Fitnesses, fault codes, the first exception (position, summary), and whether
+        this actor should now be replaced."""
+        fitness: list[float] = []
+        codes: list[int] = []
+        first: tuple[int, str] | None = None
+        for i, job in enumerate(jobs):
+            f, code, error = evaluate_job(self.task, self.compiler, job, self.guard,
+                                          first is None)
+            fitness.append(f)
+            codes.append(code)
+            if error is not None and first is None:
+                first = (at + i, error)
+        return fitness, codes, first, self.recycler.worn(len(jobs))
 
 
 def make_evaluator(
-    backend: str, task: Task, skills: SkillSet, workers: int | None, chunks_per_worker: int = 4
+    backend: str, task: Task, skills: SkillSet, workers: int | None, chunks_per_worker: int = 4,
+    limits: EvalLimits | None = None,
 ) -> SerialEvaluator | ProcessEvaluator | RayEvaluator:
     if backend == "serial":
-        return SerialEvaluator(task, skills)
+        return SerialEvaluator(task, skills, limits)
     if backend == "process":
-        return ProcessEvaluator(task, skills, workers, chunks_per_worker)
+        return ProcessEvaluator(task, skills, workers, chunks_per_worker, limits)
     if backend == "ray":
-        return RayEvaluator(task, skills, workers, chunks_per_worker)
+        return RayEvaluator(task, skills, workers, chunks_per_worker, limits)
     raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")

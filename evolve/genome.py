@@ -13,15 +13,17 @@ bound once; the run itself is the runtime's executor, not a second interpreter.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import re
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from skillcompose import FSA, CompiledFSA, ParamSpec, State
 from skillcompose.blackboard import Access
+from skillcompose.fsa import RESERVED_OUTCOMES
 from skillcompose.task import Task
 
 from .errors import SeedFSAError
@@ -39,8 +41,34 @@ class SkillChoice:
     fixed: tuple[int | None, ...] = ()
     """Per outcome: the terminal code it always ends in (a terminating skill), or None."""
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "genes", sum(p.genes for p in self.params))
+        object.__setattr__(self, "_scalar", all(p.size is None for p in self.params))
+
+    genes: int = dataclasses.field(init=False, repr=False, compare=False)
+    """How many numbers in [0, 1] a node of this skill holds (a vector counts its length)."""
+    _scalar: bool = dataclasses.field(init=False, repr=False, compare=False)
+
     def fixed_edge(self, outcome_index: int) -> int | None:
         return self.fixed[outcome_index] if self.fixed else None
+
+    def decode(self, genes: Sequence[float]) -> dict[str, Any]:
+        """The parameters, in the skill's units, that a node's genes encode."""
+        if self._scalar:
+            return {p.name: p.from_unit(x) for p, x in zip(self.params, genes, strict=True)}
+        out: dict[str, Any] = {}
+        i = 0
+        for p in self.params:
+            out[p.name] = p.from_genes(genes[i : i + p.genes])
+            i += p.genes
+        return out
+
+    def encode(self, values: Mapping[str, Any]) -> list[float]:
+        """A node's genes for parameter ``values`` (checked values, in the skill's units)."""
+        out: list[float] = []
+        for p in self.params:
+            out.extend(p.to_genes(values[p.name]))
+        return out
 
 
 class SkillSet:
@@ -58,7 +86,17 @@ class SkillSet:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
 
     @classmethod
-    def from_task(cls, task: Task, terminals: tuple[str, ...] = ("success", "failure")) -> SkillSet:
+    def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None) -> SkillSet:
+        """The task's skills; ``terminals`` default to the task's own (``Task.terminals``)."""
+        terminals = tuple(task.terminals if terminals is None else terminals)
+        bad = [t for t in terminals if not isinstance(t, str) or not t.isidentifier()
+               or t in RESERVED_OUTCOMES]
+        if not terminals or bad:
+            raise SeedFSAError(
+                f"task {task.name}: terminals {list(terminals)} must be one or more names "
+                f"(identifiers) other than {list(RESERVED_OUTCOMES)}; e.g. "
+                "terminals=('success', 'failure')"
+            )
         choices = []
         enders = task.terminal_skills
         codes = {t: -(k + 1) for k, t in enumerate(terminals)}
@@ -216,9 +254,9 @@ class Genome:
                 out.append(
                     f"node {k} ({c.name}): {len(n.edges)} edges for {len(c.outcomes)} outcomes"
                 )
-            if len(n.params) != len(c.params):
+            if len(n.params) != c.genes:
                 out.append(
-                    f"node {k} ({c.name}): {len(n.params)} parameters, expected {len(c.params)}"
+                    f"node {k} ({c.name}): {len(n.params)} parameter genes, expected {c.genes}"
                 )
             for x in n.params:
                 if not 0.0 <= x <= 1.0:
@@ -256,7 +294,7 @@ class Genome:
         for k in order:
             n = self.nodes[k]
             c = skills.choices[n.skill]
-            params = {p.name: p.from_unit(x) for p, x in zip(c.params, n.params, strict=True)}
+            params = c.decode(n.params)
             tr = {
                 o: (names[t] if t >= 0 else skills.terminals[-t - 1])
                 for o, t in zip(c.outcomes, n.edges, strict=True)
@@ -304,7 +342,7 @@ class Genome:
                 )
                 continue
             c = skills.choices[k]
-            params: list[float] = []
+            values: dict[str, Any] = {}
             for p in c.params:
                 value = st.params.get(p.name, p.default)
                 try:
@@ -312,7 +350,8 @@ class Genome:
                 except Exception as exc:
                     problems.append(f"{src}{_line(fsa, 'states', sname, 'params', p.name)}: {exc}")
                     value = p.default
-                params.append(p.to_unit(value))
+                values[p.name] = value
+            params = c.encode(values)
             for pname in st.params:
                 if pname not in {p.name for p in c.params}:
                     problems.append(
@@ -396,7 +435,7 @@ class GenomeCompiler:
             n = g.nodes[k]
             c = skills.choices[n.skill]
             fn = self._fns[n.skill]
-            kwargs = {p.name: p.from_unit(x) for p, x in zip(c.params, n.params, strict=True)}
+            kwargs = c.decode(n.params)
             if kwargs:
                 fn = functools.partial(fn, **kwargs)
             nxt = dict(zip(c.outcomes, [index[t] if t >= 0 else t for t in n.edges], strict=True))

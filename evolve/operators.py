@@ -24,8 +24,10 @@ __all__ = [
     "crossover",
     "delete_node",
     "edge_for",
+    "fix_start",
     "initialize",
     "mutate",
+    "mutate_genes",
     "mutate_node",
     "random_node",
     "random_target",
@@ -65,7 +67,7 @@ def random_node(
     a target of its own edges)."""
     k = int(rng.integers(len(skills)))
     c = skills.choices[k]
-    params = [float(x) for x in rng.random(len(c.params))]
+    params = [float(x) for x in rng.random(c.genes)]
     edges = [edge_for(g, skills, rng, weight, k, o, extra=node_id) for o in range(len(c.outcomes))]
     return Node(k, params, edges)
 
@@ -90,7 +92,7 @@ def initialize(
     choices = [int(rng.integers(len(skills))) for _ in range(nodes)]
     for k in choices:
         c = skills.choices[k]
-        g.nodes[g.new_id()] = Node(k, [float(x) for x in rng.random(len(c.params))], [])
+        g.nodes[g.new_id()] = Node(k, [float(x) for x in rng.random(c.genes)], [])
     for n in g.nodes.values():
         n.edges = [
             edge_for(g, skills, rng, weight, n.skill, o)
@@ -104,10 +106,29 @@ def initialize(
 
 
 def _start_candidates(g: Genome, exclude: int | None = None) -> list[int]:
-    """Nodes with an outgoing edge that is not a self-loop (section 3.6)."""
+    """Nodes with an edge to another node (section 3.6: "at least one outgoing edge and not
+    all the edges are self-loops"). An edge into a terminal outcome does not count: a start
+    whose every edge ends the run or loops back is an FSA of one state, such as a lone
+    terminating CheckSuccess."""
     return [
-        k for k, n in g.nodes.items() if k != exclude and any(t != k for t in n.edges)
+        k for k, n in g.nodes.items()
+        if k != exclude and any(t >= 0 and t != k for t in n.edges)
     ]
+
+
+def fix_start(g: Genome, rng: np.random.Generator) -> bool:
+    """Re-choose the start when it has no edge to another node (a mutation or a crossover
+    rewired it), among the nodes that have one. Call it before pruning, which would
+    otherwise cut the genome down to the stranded start. Returns whether the start moved;
+    a genome with no such node keeps its start."""
+    n = g.nodes.get(g.start)
+    if n is not None and any(t >= 0 and t != g.start for t in n.edges):
+        return False
+    pool = _start_candidates(g)
+    if not pool:
+        return False
+    g.start = pool[int(rng.integers(len(pool)))]
+    return True
 
 
 def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0) -> bool:
@@ -151,6 +172,7 @@ def delete_node(
     if g.start == v:
         pool = _start_candidates(g) or list(g.nodes)
         g.start = pool[int(rng.integers(len(pool)))]
+    fix_start(g, rng)
     g.prune()
     return True
 
@@ -186,11 +208,33 @@ def mutate_node(
     if free:
         o = free[int(rng.integers(len(free)))]
         n.edges[o] = random_target(g, skills, rng, weight, exclude=n.edges[o])
-    for i in range(len(n.params)):
-        if rng.random() < p_mut:
-            x = n.params[i] + float(rng.normal(0.0, sigma))
-            n.params[i] = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
+    mutate_genes(n.params, rng, p_mut, sigma)
     return "node"
+
+
+def mutate_genes(
+    genes: list[float], rng: np.random.Generator, p_mut: float, sigma: float
+) -> None:
+    """Gaussian noise on a node's parameter genes, in place, clipped to [0, 1].
+
+    As the paper's library (PyEvolve's real Gaussian list mutator) did: when the expected
+    number of mutations ``n * p_mut`` is below one, each gene mutates with probability
+    ``p_mut``; otherwise ``round(n * p_mut)`` genes drawn at random (with repetition)
+    mutate. A node with a few scalar parameters takes the first branch; a network's
+    weights the second.
+    """
+    n = len(genes)
+    expected = n * p_mut
+    if expected < 1.0:
+        for i in range(n):
+            if rng.random() < p_mut:
+                x = genes[i] + float(rng.normal(0.0, sigma))
+                genes[i] = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
+        return
+    for _ in range(round(expected)):
+        i = int(rng.integers(n))
+        x = genes[i] + float(rng.normal(0.0, sigma))
+        genes[i] = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
 
 
 def mutate(
@@ -207,6 +251,13 @@ def mutate(
     for k in list(g.nodes):
         if k in g.nodes and rng.random() < cfg.p_mut:
             ops.append(mutate_node(g, k, skills, rng, cfg.p_mut, cfg.param_sigma, w))
+    if cfg.p_param > 0.0:
+        for n in g.nodes.values():
+            if n.params and rng.random() < cfg.p_param:
+                mutate_genes(n.params, rng, cfg.p_mut, cfg.param_sigma)
+                ops.append("params")
+    if fix_start(g, rng):  # before add_node prunes
+        ops.append("fix-start")
     if rng.random() < cfg.p_add and add_node(g, skills, rng, w):
         ops.append("add")
     if rng.random() < cfg.p_del and delete_node(g, skills, rng, w):
@@ -263,6 +314,8 @@ def crossover(
     old2 = {k: g2.nodes[k].copy() for k in sub2}
     _implant(g1, sub1, sub2, old1, old2, skills, rng, weight)
     _implant(g2, sub2, sub1, old2, old1, skills, rng, weight)
+    fix_start(g1, rng)
+    fix_start(g2, rng)
     g1.prune()
     g2.prune()
     return num

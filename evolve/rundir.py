@@ -1,7 +1,8 @@
 """The run directory: what an evolution writes as it goes, and its checkpoints.
 
 Files (all written atomically, so a killed run leaves no torn file but ``history.jsonl``,
-which a resume rewrites from the checkpoint):
+which a resume rewrites from the checkpoint; a file keeps its mode when rewritten, a new one
+gets the umask's):
 
 - ``best.yaml``      the best FSA so far, editable, in the runtime's file format; its
                      fitness and lineage are under ``meta:``. At the end: the simplified FSA.
@@ -10,46 +11,52 @@ which a resume rewrites from the checkpoint):
 - ``history.jsonl``  one JSON line per generation: best / mean / median fitness, best
                      size, evaluations, evaluations/s, wall time.
 - ``fitness.png``    the fitness plot.
-- ``run.json``       the task, seed, backend and settings of the run.
-- ``checkpoint.pkl`` everything needed to continue, every ``checkpoint_every`` generations.
+- ``run.json``       the task, seed, backend and settings of the run, for people to read.
+- ``checkpoint.json`` everything needed to continue (:data:`CHECKPOINT_VERSION`): plain data
+                     that cannot run code, with a SHA-256 checksum of its content.
+- ``.lock``          locked (``lockf``) by the one process evolving in the directory.
+
+A checkpoint is one header line, a JSON object
+``{"format": "skillcompose evolve checkpoint", "version": 2, "sha256": HEX, "bytes": N}``,
+followed by N bytes: the run's state as compact JSON (floats exactly, ``Infinity`` for the
+worst fitness). Any change to those bytes, a single bit included, fails the checksum.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import os
-import pickle
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from skillcompose import FSA, save_fsa
+from skillcompose.files import TEMPORARY_MARK, atomic_write, temporary_beside
 from skillcompose.registry import Registry
 
 from .errors import CheckpointError
 
-__all__ = ["RunDir", "draw_fsa", "fsa_dot", "plot_history"]
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - platforms without flock: no lock
+    fcntl = None  # type: ignore[assignment]
 
-CHECKPOINT_VERSION = 1
+__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "RunDir", "draw_fsa", "fsa_dot",
+           "plot_history"]
+
+CHECKPOINT_FORMAT = "skillcompose evolve checkpoint"
+CHECKPOINT_VERSION = 2  # 1 was a pickle, which is never loaded (it could run code)
+_HEADER_MAX = 1024
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, data, sync=True)
 
 
 class RunDir:
-    """Writes one run's files under ``path``."""
+    """Writes one run's files under ``path``; one process at a time (:meth:`lock`)."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
@@ -60,17 +67,74 @@ class RunDir:
         self.history = self.path / "history.jsonl"
         self.fitness_png = self.path / "fitness.png"
         self.run_json = self.path / "run.json"
-        self.checkpoint = self.path / "checkpoint.pkl"
+        self.checkpoint = self.path / "checkpoint.json"
+        self.old_checkpoint = self.path / "checkpoint.pkl"
+        self.lock_file = self.path / ".lock"
+        self._lock: IO[str] | None = None
 
-    def create(self, run_info: Mapping[str, Any]) -> None:
+    # -- one process at a time -------------------------------------------------------------
+    def lock(self) -> None:
+        """Hold the directory's lock until :meth:`unlock` (or this process ends); then remove
+        the temporary files a killed run may have left. Raises :class:`CheckpointError` when
+        another process holds it."""
+        if self._lock is not None:
+            return
         self.path.mkdir(parents=True, exist_ok=True)
-        if self.checkpoint.exists():
-            raise CheckpointError(
-                f"{self.path} holds a run already (checkpoint.pkl); continue it with "
-                f"--resume {self.path}, or choose another --out directory"
-            )
-        _atomic_write(self.run_json, json.dumps(run_info, indent=2, default=str).encode())
-        self.history.write_text("")
+        f = open(self.lock_file, "a+", encoding="utf-8")  # noqa: SIM115 - held open on purpose
+        if fcntl is not None:
+            try:
+                # a POSIX record lock: held by this process only, not by the processes it
+                # forks (pool workers), so it ends with this process, however it ends
+                fcntl.lockf(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                f.seek(0)
+                holder = f.read().strip() or "unknown"
+                f.close()
+                raise CheckpointError(
+                    f"{self.path} is in use by another evolve (process {holder}); wait for it "
+                    "to end, or choose another --out directory"
+                ) from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"{os.getpid()}\n")
+        f.flush()
+        self._lock = f
+        self.remove_temporary()
+
+    def unlock(self) -> None:
+        if self._lock is not None:
+            self._lock.close()  # closing the file releases the lock
+            self._lock = None
+
+    def remove_temporary(self) -> list[Path]:
+        """Remove the temporary files (``.NAME.tmp-*``) a killed writer left behind."""
+        gone = []
+        for p in self.path.glob(f".*{TEMPORARY_MARK}*"):
+            with contextlib.suppress(OSError):
+                p.unlink()
+                gone.append(p)
+        return gone
+
+    # -- files -----------------------------------------------------------------------------
+    def create(self, run_info: Mapping[str, Any]) -> None:
+        self.lock()
+        for cp in (self.checkpoint, self.old_checkpoint):
+            if cp.exists():
+                raise CheckpointError(
+                    f"{self.path} holds a run already ({cp.name}); continue it with "
+                    f"--resume {self.path}, or choose another --out directory"
+                )
+        self.write_run_info(run_info)
+        _atomic_write(self.history, b"")
+
+    def write_run_info(self, run_info: Mapping[str, Any]) -> None:
+        _atomic_write(self.run_json, (json.dumps(run_info, indent=2) + "\n").encode())
+
+    def update_run_info(self, changes: Mapping[str, Any]) -> None:
+        """Add or replace top-level entries of ``run.json`` (the result, at the end)."""
+        info = self.load_run_info()
+        info.update(changes)
+        _atomic_write(self.run_json, (json.dumps(info, indent=2, default=str) + "\n").encode())
 
     def append_history(self, record: Mapping[str, Any]) -> None:
         with self.history.open("a", encoding="utf-8") as f:
@@ -92,31 +156,81 @@ class RunDir:
             dot = fsa_dot(fsa)
         _atomic_write(self.best_dot, dot.encode())
 
+    # -- checkpoints -----------------------------------------------------------------------
     def save_checkpoint(self, state: Mapping[str, Any]) -> None:
-        data = pickle.dumps({"version": CHECKPOINT_VERSION, **state}, protocol=4)
-        _atomic_write(self.checkpoint, data)
+        """Write ``state`` (plain JSON data) as a versioned, checksummed checkpoint."""
+        payload = json.dumps(state, separators=(",", ":"), allow_nan=True).encode()
+        header = json.dumps({
+            "format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION,
+            "sha256": hashlib.sha256(payload).hexdigest(), "bytes": len(payload),
+        }, separators=(",", ":")).encode()
+        _atomic_write(self.checkpoint, header + b"\n" + payload)
 
     def load_checkpoint(self) -> dict[str, Any]:
-        if not self.checkpoint.exists():
+        """The state of the last checkpoint, checked: never code, only data. Raises
+        :class:`CheckpointError` (one line) when it is missing, damaged or of another
+        version."""
+        cp = self.checkpoint
+        if not cp.exists():
+            if self.old_checkpoint.exists():
+                raise CheckpointError(
+                    f"{self.old_checkpoint} is a checkpoint of an older evolve, a pickle, "
+                    "which is never loaded (loading it could run any code); start the run "
+                    "afresh"
+                )
             raise CheckpointError(
-                f"{self.path} has no checkpoint.pkl to resume from; a run writes one every "
-                "checkpoint_every generations (start it with --out DIR)"
+                f"{self.path} has no checkpoint.json to resume from; a run writes one as it "
+                "starts and every checkpoint_every generations (start it with --out DIR)"
             )
         try:
-            state = pickle.loads(self.checkpoint.read_bytes())
-        except Exception as exc:
-            raise CheckpointError(f"{self.checkpoint} cannot be read: {exc}") from exc
-        if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
+            data = cp.read_bytes()
+        except OSError as exc:
+            raise CheckpointError(f"{cp} cannot be read: {exc.strerror}") from None
+        return self.parse_checkpoint(data)
+
+    def parse_checkpoint(self, data: bytes) -> dict[str, Any]:
+        """The state in a checkpoint's bytes, checked (see :meth:`load_checkpoint`)."""
+        cp = self.checkpoint
+        damaged = f"{cp} is damaged"
+        first, newline, payload = data.partition(b"\n")
+        try:
+            if not newline or len(first) > _HEADER_MAX:
+                raise ValueError
+            header = json.loads(first)
+            if not isinstance(header, dict) or header.get("format") != CHECKPOINT_FORMAT:
+                raise ValueError
+        except (ValueError, RecursionError):
             raise CheckpointError(
-                f"{self.checkpoint} was written by another version of evolve; start afresh"
+                f"{damaged}: its first line is not the header of an evolve checkpoint; "
+                "restore it from a copy or start afresh"
+            ) from None
+        if header.get("version") != CHECKPOINT_VERSION:
+            raise CheckpointError(
+                f"{cp} is a checkpoint of version {header.get('version')!r}; this evolve "
+                f"reads version {CHECKPOINT_VERSION}: continue it with the evolve that wrote "
+                "it, or start afresh"
             )
+        if header.get("bytes") != len(payload) or \
+                header.get("sha256") != hashlib.sha256(payload).hexdigest():
+            raise CheckpointError(
+                f"{damaged}: its content does not match its checksum (the file was changed "
+                "or corrupted); restore it from a copy or start afresh"
+            )
+        try:
+            state = json.loads(payload)
+        except (ValueError, RecursionError):
+            raise CheckpointError(f"{damaged}: its content is not JSON") from None
+        if not isinstance(state, dict):
+            raise CheckpointError(f"{damaged}: its content is not a JSON object")
         return state
 
     def load_run_info(self) -> dict[str, Any]:
         try:
-            info = json.loads(self.run_json.read_text())
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"{self.run_json} cannot be read: {exc}") from exc
+            info = json.loads(self.run_json.read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise CheckpointError(f"{self.run_json} cannot be read: {exc.strerror}") from None
+        except (ValueError, RecursionError) as exc:
+            raise CheckpointError(f"{self.run_json} is not valid JSON: {exc}") from None
         if not isinstance(info, dict):
             raise CheckpointError(f"{self.run_json} is not a JSON object")
         return info
@@ -151,15 +265,8 @@ def draw_fsa(fsa: FSA, path: str | os.PathLike[str]) -> None:
     :func:`skillcompose.draw.render`."""
     from skillcompose.draw import render
 
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:  # written aside and renamed, so a reader never sees half a picture
+    with temporary_beside(path, suffix=Path(path).suffix) as tmp:  # never half a picture
         render(fsa, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> None:
@@ -181,12 +288,5 @@ def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[s
 
 
 def _save_fig(fig: Any, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
+    with temporary_beside(path, suffix=".png") as tmp:
         fig.savefig(tmp, dpi=90)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

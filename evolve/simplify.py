@@ -19,8 +19,11 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from skillcompose import FSA, compile_fsa
+from skillcompose import FSA
+from skillcompose.executor import trial_rngs
 from skillcompose.task import Task
+
+from .evaluation import Guard, evaluate_episode
 
 __all__ = ["merge_duplicates", "simplify"]
 
@@ -76,25 +79,26 @@ def _remove(fsa: FSA, victim: str, target: str) -> FSA:
 
 
 def simplify(
-    task: Task, fsa: FSA, seed: int = 0, trials: int = 200, tolerance: float = 0.0
+    task: Task, fsa: FSA, seed: int = 0, trials: int = 200, tolerance: float = 0.0,
+    time_limit: float | None = None,
 ) -> FSA:
     """Remove states that do not help ``fsa`` on ``task`` (see the module docstring).
 
     A change is kept when the mean fitness over ``trials`` worlds drawn from ``seed`` is no
     worse than the current FSA's plus ``tolerance`` and its solved rate is no lower. The
     result records what was removed and the fitness before and after under
-    ``meta['simplified']``.
+    ``meta['simplified']``. An episode that raises (``SystemExit`` included) or runs past
+    ``time_limit`` seconds scores the task's worst fitness.
     """
-    registry, backend = task.registry, task.backend
-
     def measure(f: FSA) -> tuple[float, float]:
         """Mean fitness and solved rate (share of worlds at the task's target)."""
         try:
-            scores = [
-                x for _, x in task.run_trials(compile_fsa(f, registry, backend), seed, trials)
-            ]
+            compiled = task.compile(f)
         except Exception:
             return task.worst, 0.0
+        with Guard(time_limit) as guard:
+            scores = [evaluate_episode(task, compiled, rng, guard)[0]
+                      for rng in trial_rngs(seed, trials)]
         return float(sum(scores) / len(scores)), sum(map(task.solved, scores)) / len(scores)
 
     def no_worse(a: tuple[float, float], b: tuple[float, float]) -> bool:

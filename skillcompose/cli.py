@@ -20,8 +20,9 @@ import numpy as np
 from .arguments import MAX_TRIALS, UsageError, module_or_file, output_file, seed, setting, whole
 from .blackboard import DELETED, Blackboard
 from .errors import SkillcomposeError
-from .executor import compile_fsa, summarize, trial_rngs
+from .executor import compile_fsa, error_summary, summarize, trial_rngs
 from .fsafile import load_fsa
+from .progress import progress_bar
 from .registry import Registry
 from .task import Task, load_task, parse_settings
 
@@ -122,10 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     traceback unless ``--traceback``, or ``run --trace`` / ``--propagate``, asks for one.
     """
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a usage error (2), already printed
-        return exc.code if isinstance(exc.code, int) else 2
+    args = parser.parse_args(argv)  # a usage error: one line and SystemExit(2)
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
@@ -197,13 +195,19 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SkillcomposeError(
             f"{args.file}: no skills loaded; give --skills MODULE or --task TASK"
         )
-    try:
-        compiled = compile_fsa(fsa, registry, args.backend)
+    try:  # with a task, the task's step limit (as in evolution); else the file's
+        compiled = task.compile(fsa, args.backend) if task is not None else \
+            compile_fsa(fsa, registry, args.backend)
     except SkillcomposeError as exc:
         raise SkillcomposeError(str(exc)) from None
+    if task is not None and fsa.step_limit != task.step_limit:
+        print(f"{args.file}: step limit {task.step_limit} from task {task.name} (the file's "
+              f"{fsa.step_limit} applies when it runs without --task)", file=sys.stderr)
     results = []
     fitness: list[float] = []
+    bar = progress_bar(args.trials, "run")  # on a terminal, once it takes a while
     for k, rng in enumerate(trial_rngs(args.seed, args.trials)):
+        bar.update(1)
         bb = task.setup(rng) if task is not None else Blackboard()
         result = compiled.run(bb, rng, trace=args.trace and k == 0, propagate=args.propagate)
         results.append(result)
@@ -214,6 +218,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if result.error is not None and args.trace and k == 0:
             print(f"state {result.last_state} raised:", file=sys.stderr)
             traceback.print_exception(result.error, file=sys.stderr)
+    bar.close()
     s = summarize(results)
     print(f"{args.file}: {s['trials']} run(s), seed {args.seed}, backend {compiled.backend}")
     width = max(len(o) for o in s["outcomes"])
@@ -224,15 +229,20 @@ def cmd_run(args: argparse.Namespace) -> int:
         arr = np.asarray(fitness)
         print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
               f"({'lower' if task.minimize else 'higher'} is better)")
-    errors = [r for r in results if r.error is not None]
+    errors = [(k, r) for k, r in enumerate(results) if r.error is not None]
     if errors and not args.trace:
-        first = errors[0]
+        k, first = errors[0]
+        assert first.error is not None
         print(
-            f"  {len(errors)} run(s) ended in error; first in state {first.last_state}: "
-            f"{type(first.error).__name__}: {first.error}. Rerun with --trace (and "
-            "--trials 1 --seed of that run) for the traceback",
+            f"  {len(errors)} run(s) ended in error; the first (run {k}) in state "
+            f"{first.last_state}: {error_summary(first.error)}\n"
+            "  rerun with --trace for the whole traceback",
             file=sys.stderr,
         )
+    if len(errors) == len(results):
+        print(f"skillcompose run: error: every run of {args.file} ended in error",
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -33,6 +33,8 @@ def _q(text: str) -> str:
 def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.3g}"
+    if isinstance(v, (list, tuple)):  # a vector parameter: its length, not its numbers
+        return f"[{len(v)} values]"
     return str(v)
 
 

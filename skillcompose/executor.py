@@ -35,6 +35,7 @@ __all__ = [
     "RunResult",
     "TraceStep",
     "compile_fsa",
+    "error_summary",
     "run_fsa",
     "trial_seeds",
 ]
@@ -70,6 +71,14 @@ class RunResult:
         if self.error is None:
             return ""
         return "".join(traceback.format_exception(self.error))
+
+
+def error_summary(exc: BaseException, frames: int = 3) -> str:
+    """``Type: message`` and, below it, the innermost ``frames`` frames of its traceback."""
+    head = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    stack = traceback.extract_tb(exc.__traceback__)[-frames:]
+    body = "".join(traceback.format_list(stack)).rstrip()
+    return f"{head}\n{body}" if body else head
 
 
 class _Raised(Exception):

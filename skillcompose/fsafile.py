@@ -43,7 +43,6 @@ import io
 import math
 import os
 import re
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -64,6 +63,7 @@ from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
 
 from .errors import FSAFileError, FSAValidationError, Problem
+from .files import atomic_write
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, MAX_STEP_LIMIT, Source, State
 
 if TYPE_CHECKING:
@@ -89,7 +89,7 @@ REQUIRED_TOP_LEVEL = ("format", "start", "states")
 STATE_KEYS = ("skill", "params", "transitions", "time_limit")
 REQUIRED_STATE_KEYS = ("skill", "transitions")
 
-MAX_FILE_BYTES = 64 * 1024
+MAX_FILE_BYTES = 256 * 1024
 """The largest FSA file read; a larger one is refused before it is parsed."""
 MAX_DEPTH = 32
 """The deepest nesting of mappings and lists (a state's transitions are 4 levels deep)."""
@@ -719,9 +719,15 @@ class _Reader:
                                     fix="write `params: {name: value}`")
                 for pname, (_, pv) in (pmap or {}).items():
                     self.mark(("states", sname, "params", pname), pv)
+                    if isinstance(pv, SequenceNode) and all(
+                        isinstance(item, ScalarNode) for item in pv.value
+                    ):  # a vector parameter: one flat list of numbers
+                        params[pname] = tuple(self.scalar(item) for item in pv.value)
+                        continue
                     if not isinstance(pv, ScalarNode):
                         self.fail(pv, f"parameter {pname!r} must be a single value "
-                                  f"(number, true/false or text), got {_node_kind(pv)}",
+                                  f"(number, true/false or text) or, for a vector "
+                                  f"parameter, a flat list of numbers; got {_node_kind(pv)}",
                                   state=sname, key=pname)
                         ok = False
                         continue
@@ -791,19 +797,11 @@ def save_fsa(
     fsa: FSA, path: str | os.PathLike[str], registry: Registry | None = None,
     *, header: str | None = None,
 ) -> FSA:
-    """Write ``fsa`` to ``path`` atomically; return it bound to that file for later saves."""
+    """Write ``fsa`` to ``path`` atomically, keeping the mode of the file it replaces (a new
+    file gets the umask's); return it bound to that file for later saves."""
     text = dumps_fsa(fsa, registry, header=header)
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return loads_fsa(text, str(p))
+    atomic_write(path, text.encode("utf-8"))
+    return loads_fsa(text, str(Path(path)))
 
 
 def _yaml_out() -> YAML:
@@ -846,7 +844,8 @@ def _state_map(st: State, registry: Registry | None) -> CommentedMap:
     if st.params:
         pm = CommentedMap()
         for k, v in st.params.items():
-            pm[k] = _py(v)
+            value = _py(v)
+            pm[k] = _flow_list(value) if isinstance(value, list) else value
             c = _param_comment(registry, st.skill, k)
             if c:
                 pm.yaml_add_eol_comment(c, k)
@@ -887,7 +886,7 @@ def _set(m: CommentedMap, key: str, value: Any) -> None:
     value = _py(value)
     if key in m and _equal(_plain(m[key]), value) and _emits_exactly(m[key]):
         return
-    if isinstance(value, list) and key == "terminals":
+    if isinstance(value, list):  # terminals, vector parameters: one line (or a few)
         value = _flow_list(value)
     m[key] = value
 

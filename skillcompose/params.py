@@ -6,10 +6,14 @@ A skill declares its parameters as keyword-only arguments::
              approach: Annotated[float, Param(0.05, 0.30, unit="m")] = 0.1,
              arm: Literal["left", "right"] = "left",
              tries: Annotated[int, Param(1, 5)] = 2,
-             careful: bool = False) -> Literal["success", "failure"]: ...
+             careful: bool = False,
+             weights: Annotated[tuple[float, ...], Param(-3, 3, size=38)] = (0.0,) * 38,
+             ) -> Literal["success", "failure"]: ...
 
 Every parameter maps to and from the unit interval [0, 1] so that evolution can hold a genome
-of normalised numbers while files and users see values in the skill's own units.
+of normalised numbers while files and users see values in the skill's own units. A vector
+parameter (``size=n``, e.g. a network's weights) is ``n`` such numbers, each with the same
+range: ``n`` genes of the genome, one list in a file.
 """
 
 from __future__ import annotations
@@ -32,7 +36,9 @@ class Param:
     """Declaration of a numeric parameter's range, used inside ``Annotated[...]``.
 
     ``low``/``high`` are inclusive bounds in the parameter's ``unit``. ``scale="log"`` makes
-    evolution search the range geometrically (both bounds must then be positive).
+    evolution search the range geometrically (both bounds must then be positive). ``size=n``
+    declares a vector of ``n`` floats, each in the range (the parameter is then a
+    ``tuple[float, ...]`` of that length).
     """
 
     low: float
@@ -40,6 +46,7 @@ class Param:
     unit: str = ""
     scale: Scale = "linear"
     doc: str = ""
+    size: int | None = None
 
 
 @dataclass(frozen=True)
@@ -69,6 +76,13 @@ class ParamSpec:
     scale: Scale = "linear"
     choices: tuple[Any, ...] = field(default=())
     doc: str = ""
+    size: int | None = None
+    """``n`` for a vector of ``n`` floats (each in [low, high]); None for a single value."""
+
+    @property
+    def genes(self) -> int:
+        """How many numbers in [0, 1] this parameter takes in a genome."""
+        return 1 if self.size is None else self.size
 
     # -- checking -------------------------------------------------------------------------
     def describe_range(self) -> str:
@@ -77,11 +91,15 @@ class ParamSpec:
         if self.kind == "bool":
             return "true or false"
         unit = f" {self.unit}" if self.unit else ""
+        if self.size is not None:
+            return f"{self.size} floats, each in [{self.low:g}, {self.high:g}]{unit}"
         return f"{self.kind} in [{self.low:g}, {self.high:g}]{unit}"
 
     def check(self, value: Any, where: str = "") -> Any:
         """Return ``value`` as this parameter's Python type, or raise :class:`ParamError`."""
         prefix = f"{where}: " if where else ""
+        if self.size is not None:
+            return self._check_vector(value, prefix)
         bad = (
             f"{prefix}parameter {self.name!r} = {value!r} is not valid; "
             f"expected {self.describe_range()}"
@@ -114,6 +132,43 @@ class ParamSpec:
             )
         return value
 
+    def _check_vector(self, value: Any, prefix: str) -> tuple[float, ...]:
+        n = self.size
+        assert n is not None and self.low is not None and self.high is not None
+        head = f"{prefix}parameter {self.name!r} is not valid; expected {self.describe_range()}"
+        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+            raise ParamError(f"{head}, got {_short(value)}; write a list such as [0.1, -0.5, ...]")
+        if len(value) != n:
+            raise ParamError(
+                f"{head}, got a list of {len(value)}; give exactly {n} numbers (the skill "
+                "declares the length)"
+            )
+        out: list[float] = []
+        for i, v in enumerate(value):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or \
+                    not math.isfinite(float(v)):
+                raise ParamError(f"{head}; item {i} = {_short(v)} is not a finite number")
+            if not self.low <= v <= self.high:
+                raise ParamError(
+                    f"{head}; item {i} = {v!r} is outside; set it between {self.low:g} and "
+                    f"{self.high:g} or widen the skill's declared range"
+                )
+            out.append(float(v))
+        return tuple(out)
+
+    # -- genes: what evolution holds -------------------------------------------------------
+    def from_genes(self, xs: Sequence[float]) -> Any:
+        """The value that ``self.genes`` numbers in [0, 1] encode (a tuple for a vector)."""
+        if self.size is None:
+            return self.from_unit(xs[0])
+        return tuple(self._scalar_from_unit(x) for x in xs)
+
+    def to_genes(self, value: Any) -> list[float]:
+        """Inverse of :meth:`from_genes`: ``self.genes`` numbers in [0, 1]."""
+        if self.size is None:
+            return [self.to_unit(value)]
+        return [self._scalar_to_unit(v) for v in value]
+
     # -- the unit interval used by evolution ----------------------------------------------
     def from_unit(self, x: float) -> Any:
         """Map ``x`` in [0, 1] (clipped) to a value of this parameter."""
@@ -123,15 +178,22 @@ class ParamSpec:
         if self.kind == "choice":
             n = len(self.choices)
             return self.choices[min(int(x * n), n - 1)]
+        if self.size is not None:
+            raise ParamError(f"parameter {self.name!r} is a vector; use from_genes")
+        v = self._scalar_from_unit(x)
+        if self.kind == "int":
+            assert self.low is not None and self.high is not None
+            return int(min(max(round(v), math.ceil(self.low)), math.floor(self.high)))
+        return v
+
+    def _scalar_from_unit(self, x: float) -> float:
         assert self.low is not None and self.high is not None
+        x = 0.0 if x < 0.0 else 1.0 if x > 1.0 else float(x)
         if self.scale == "log":
             v = math.exp(math.log(self.low) + x * (math.log(self.high) - math.log(self.low)))
         else:
             v = self.low + x * (self.high - self.low)
-        v = min(max(v, self.low), self.high)
-        if self.kind == "int":
-            return int(min(max(round(v), math.ceil(self.low)), math.floor(self.high)))
-        return v
+        return min(max(v, self.low), self.high)
 
     def to_unit(self, value: Any) -> float:
         """Map a value of this parameter to [0, 1] (inverse of :meth:`from_unit`)."""
@@ -140,6 +202,11 @@ class ParamSpec:
         if self.kind == "choice":
             n = len(self.choices)
             return (self.choices.index(value) + 0.5) / n
+        if self.size is not None:
+            raise ParamError(f"parameter {self.name!r} is a vector; use to_genes")
+        return self._scalar_to_unit(value)
+
+    def _scalar_to_unit(self, value: Any) -> float:
         assert self.low is not None and self.high is not None
         if self.high == self.low:
             return 0.5
@@ -167,18 +234,27 @@ def make_param_spec(
         )
     elif base_type is bool or (decl is None and isinstance(default, bool)):
         spec = ParamSpec(name, "bool", default, doc="")
+    elif isinstance(decl, Param) and decl.size is not None:
+        if isinstance(decl.size, bool) or not isinstance(decl.size, int) or decl.size < 1:
+            raise ParamError(f"{where}: size must be a whole number >= 1, got {decl.size!r}")
+        if base_type not in (None, tuple, list) and get_origin(base_type) not in (tuple, list):
+            raise ParamError(
+                f"{where}: a vector parameter (size={decl.size}) is annotated "
+                f"`Annotated[tuple[float, ...], Param(low, high, size={decl.size})]`, "
+                f"got {base_type!r}"
+            )
+        _check_range(decl, where)
+        spec = ParamSpec(
+            name, "float", default, low=float(decl.low), high=float(decl.high),
+            unit=decl.unit, scale=decl.scale, doc=decl.doc, size=decl.size,
+        )
     elif isinstance(decl, Param):
         kind: ParamKind
         if base_type is int or (base_type is None and isinstance(default, int)):
             kind = "int"
         else:
             kind = "float"
-        if not decl.low <= decl.high:
-            raise ParamError(f"{where}: low {decl.low} is above high {decl.high}")
-        if decl.scale == "log" and decl.low <= 0:
-            raise ParamError(f"{where}: scale='log' needs a positive low bound, got {decl.low}")
-        if decl.scale not in ("linear", "log"):
-            raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
+        _check_range(decl, where)
         spec = ParamSpec(
             name, kind, default, low=float(decl.low), high=float(decl.high),
             unit=decl.unit, scale=decl.scale, doc=decl.doc,
@@ -193,6 +269,20 @@ def make_param_spec(
         raise ParamError(f"{where}: needs a default value (evolution and files may omit it)")
     spec = ParamSpec(**{**spec.__dict__, "default": spec.check(default, f"skill {owner}")})
     return spec
+
+
+def _check_range(decl: Param, where: str) -> None:
+    if not decl.low <= decl.high:
+        raise ParamError(f"{where}: low {decl.low} is above high {decl.high}")
+    if decl.scale == "log" and decl.low <= 0:
+        raise ParamError(f"{where}: scale='log' needs a positive low bound, got {decl.low}")
+    if decl.scale not in ("linear", "log"):
+        raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 class _Missing:

@@ -21,8 +21,8 @@ How it runs:
 - Repetition ``r`` uses the generator of ``SeedSequence(seed).spawn(reps)[r]`` at *every*
   point (common random numbers): the curve is smooth, a point's numbers do not depend on
   which other points are swept, and the table is identical for any number of workers.
-- The FSA runs with its own ``step_limit`` (what the file says is what is swept) unless
-  ``step_limit`` is given.
+- The FSA runs with the task's ``step_limit`` (as in evolution and ``skillcompose run
+  --task``; the file's own applies only without a task) unless ``step_limit`` is given.
 - ``std`` is the sample standard deviation (``ddof=1``) of the fitness over the repetitions.
 """
 
@@ -48,6 +48,7 @@ from .errors import SkillcomposeError
 from .executor import compile_fsa
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 from .fsafile import load_fsa
+from .progress import progress_bar
 from .task import Task, TaskRef, parse_settings
 
 __all__ = [
@@ -153,16 +154,23 @@ def robustness_sweep(
     compile_fsa(machine, first.registry, backend or first.backend)
 
     jobs = [
-        _Chunk(machine, ref, setting, v, backend, seed, start, stop)
+        _Chunk(machine, ref, setting, v, backend, seed, start, stop, step_limit is None)
         for v in values
         for start, stop in _chunks(reps, workers, len(values))
     ]
-    if workers == 1 or len(jobs) == 1:
-        parts = [_run_chunk(job) for job in jobs]
-    else:
-        ctx = multiprocessing.get_context()  # the platform default start method
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
-            parts = list(pool.map(_run_chunk, jobs))
+    parts = []
+    with progress_bar(len(values) * reps, "run", f"sweep of {setting}") as bar:
+        if workers == 1 or len(jobs) == 1:
+            for job in jobs:
+                parts.append(_run_chunk(job))
+                bar.update(job.stop - job.start)
+        else:
+            ctx = multiprocessing.get_context()  # the platform default start method
+            with ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
+                                     mp_context=ctx) as pool:
+                for job, part in zip(jobs, pool.map(_run_chunk, jobs), strict=True):
+                    parts.append(part)
+                    bar.update(job.stop - job.start)
 
     rows = []
     per_value = len(jobs) // len(values)
@@ -199,12 +207,14 @@ class _Chunk:
     seed: int
     start: int
     stop: int
+    task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
 
 
 def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
     task = _build(job.ref, job.setting, job.value)
-    compiled = compile_fsa(job.fsa, task.registry, job.backend or task.backend)
+    compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
+        compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
     fit = np.empty(n)
     steps = np.empty(n, dtype=np.int64)
@@ -417,7 +427,7 @@ def register_cli(subparsers: Any) -> None:
                    dest="settings", help="another task setting, kept fixed; repeatable")
     p.add_argument("--backend", help="which implementation of each skill to run")
     p.add_argument("--step-limit", type=whole(1, MAX_STEP_LIMIT),
-                   help="override the FSA file's step_limit")
+                   help="steps after which a run ends in timeout (default: the task's)")
     p.set_defaults(func=cmd_robustness)
 
 

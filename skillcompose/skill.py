@@ -102,8 +102,8 @@ class SkillSpec:
         """True when two implementations are interchangeable in an FSA file."""
         return (
             self.outcomes == other.outcomes
-            and [(p.name, p.kind, p.low, p.high, p.choices) for p in self.params]
-            == [(p.name, p.kind, p.low, p.high, p.choices) for p in other.params]
+            and [(p.name, p.kind, p.low, p.high, p.choices, p.size) for p in self.params]
+            == [(p.name, p.kind, p.low, p.high, p.choices, p.size) for p in other.params]
         )
 
 

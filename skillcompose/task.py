@@ -17,8 +17,8 @@ import numpy as np
 
 from .blackboard import Blackboard
 from .errors import SkillcomposeError
-from .executor import CompiledFSA, RunResult, trial_rngs
-from .fsa import ERROR
+from .executor import CompiledFSA, RunResult, compile_fsa, trial_rngs
+from .fsa import DEFAULT_TERMINALS, ERROR, FSA
 from .registry import Registry, describe_exception, import_target
 
 __all__ = ["Task", "TaskError", "TaskRef", "load_task"]
@@ -42,11 +42,20 @@ class Task:
       equations 1 and 2), higher otherwise. ``error_fitness`` scores a run whose skill
       raised (default: the worst possible).
     - ``target``: a mean fitness at least this good counts as solved.
-    - ``step_limit``: the paper's timeout; ``trials``: runs averaged per evaluation.
+    - ``step_limit``: the paper's timeout. It is the task's: whenever an FSA runs for the
+      task (evolution, simplification, ``skillcompose run FILE --task``, robustness) more
+      steps than this end the run in ``timeout``, whatever the file's own ``step_limit``
+      (which applies when a file runs without a task). See :meth:`compile`.
+    - ``trials``: runs averaged per evaluation.
+    - ``terminals``: the outcomes that end a run (default ``success``, ``failure``), as an
+      FSA file's ``terminals:``; the fitness sees which one ended it.
     - ``terminal_skills``: the skills whose outcomes end a run, as the paper's CheckSuccess
       (4.1, 4.3) and Push (4.2) do. Evolution then routes each outcome of those skills that
       names a terminal to that terminal, and every other edge to a state, as in the paper.
       ``None`` (default) lets any outcome of any state end the run.
+    - ``deterministic``: the world and the skills draw nothing at random, so every episode
+      of an FSA is the same: evolution then runs one trial per evaluation and one per
+      simplification test and check, whatever ``trials`` says.
     """
 
     name: str
@@ -62,6 +71,8 @@ class Task:
     settings: Mapping[str, Any] = field(default_factory=dict)
     error_fitness: float | None = None
     terminal_skills: tuple[str, ...] | None = None
+    terminals: tuple[str, ...] = DEFAULT_TERMINALS
+    deterministic: bool = False
     ref: TaskRef | None = None
 
     @property
@@ -79,6 +90,12 @@ class Task:
     def better(self, a: float, b: float) -> bool:
         """True when fitness ``a`` is strictly better than ``b``."""
         return a < b if self.minimize else a > b
+
+    def compile(self, fsa: FSA, backend: str | None = None) -> CompiledFSA:
+        """``fsa`` compiled for this task: its skills, its backend, and its step limit."""
+        if fsa.step_limit != self.step_limit:
+            fsa = fsa.replace(step_limit=self.step_limit)
+        return compile_fsa(fsa, self.registry, backend or self.backend)
 
     def score(self, result: RunResult, bb: Blackboard) -> float:
         if result.outcome == ERROR:

@@ -34,15 +34,17 @@ Twins of the pour-water skills (section 4.1, :mod:`skills.pour_water`):
 
 Skills of the paper's other experiments, which have no abstract twin yet:
 
-- ``MoveBase`` (x, y, yaw, torso, arm), section 4.2. The paper's MoveBase is a recurrent
-  network whose outputs are these five values; here they are explicit parameters (a network
-  skill can compute them and call the same motion). Fails on a base or arm collision.
+- ``MoveBase`` (weights), section 4.2: the twin of the network skill of
+  :mod:`skills.move_to_push` (built per topology by :func:`make_move_base`); the same
+  network gives the base pose, torso height and arm, then the base moves on the PR2 model.
+  Fails when the base or an arm hits the table or the base leaves the room.
 - ``Push``, section 4.2: the arm chosen by MoveBase pushes ``object_position_world`` 5 cm
   away from the robot, horizontally, torso fixed; fails when IK says it cannot.
 - ``GraspParam`` (which), ``MoveGripperToStack`` (which, dx, dy, dz), ``OpenGripper``,
   section 4.3, on the objects ``object_positions_world`` (first, second).
 
-New skills a programmer reaches for: ``MoveGripperToPose`` (arm, pose), ``PlaceBase`` (arm,
+New skills a programmer reaches for: ``MoveBasePose`` (x, y, yaw, torso, arm: MoveBase's five
+outputs as explicit parameters), ``MoveGripperToPose`` (arm, pose), ``PlaceBase`` (arm,
 object) and the condition ``Reachable`` (arm, object) with outcomes ``yes`` / ``no``.
 """
 
@@ -50,7 +52,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -87,6 +89,8 @@ from skills.kinematic_world import (
     top_down_grasp_world,
     transform_robot_to_world,
 )
+from skills.move_to_push import SAFETY_M, base_hits_table, base_in_room, network_goal
+from skills.network import WEIGHT_RANGE, Topology, weight_count
 from skills.pour_water import (
     APPROACH_OFFSET_M,
     APPROACH_TOLERANCE_M,
@@ -107,7 +111,8 @@ __all__ = [
     "check_success",
     "grasp_object",
     "grasp_param",
-    "move_base",
+    "make_move_base",
+    "move_base_pose",
     "move_gripper_to_param",
     "move_gripper_to_pose",
     "move_gripper_to_stack",
@@ -118,6 +123,7 @@ __all__ = [
     "reachable",
     "recognise_object",
     "register",
+    "register_move_to_push",
     "rotate_gripper_to_param",
 ]
 
@@ -470,8 +476,36 @@ def _box_to_robot(box: Box, robot_to_world: pin.SE3) -> Box:
                box.yaw_rad - yaw, box.name)
 
 
-@skill(name="MoveBase", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
-def move_base(
+def _drive_base(
+    bb: Blackboard, who: str, pose: tuple[float, float, float], torso: float,
+    arm: Literal["left", "right"],
+) -> Literal["success", "failure"]:
+    """Drive the base to ``pose`` (x, y, yaw in world), set the torso, choose the arm:
+    ``failure`` (``collision``) when the base box or an arm at the new pose hits the scene,
+    or the base leaves the room (``room_half_m``, when the world has one); held objects
+    move with the robot."""
+    x, y, yaw = pose
+    room = bb.get("room_half_m")
+    if room is not None and not base_in_room(pose, float(room)):
+        return fail(bb, "collision", f"{who}: the base at {fmt(pose)} (m, m, rad) leaves the "
+                    f"room |x|, |y| <= {float(room):g} m")
+    state = read_state(bb)
+    scene = scene_world(bb)
+    hit = base_collides(pose, scene)
+    if hit is not None:
+        return fail(bb, "collision", f"{who}: the base at {fmt(pose)} (m, m, rad) "
+                    f"hits {hit!r} (base half size {BASE_HALF_EXTENTS_M[0]} m)")
+    moved = RobotState((x, y, yaw), torso, state.q_arm_rad, state.held, arm)
+    if _arms_collide(moved, scene):
+        return fail(bb, "collision", f"{who}: at {fmt(pose)} with the torso at "
+                    f"{torso:.3f} m an arm hits the scene")
+    commit(bb, moved)
+    return "success"
+
+
+@skill(name="MoveBasePose", reads=(*_MOVE_READS, "room_half_m"), writes=_MOVE_WRITES,
+       backend=BACKEND)
+def move_base_pose(
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -481,24 +515,45 @@ def move_base(
     torso: Annotated[float, Param(*TORSO_RANGE_M, unit="m", doc="torso lift")] = 0.0,
     arm: Literal["left", "right"] = "right",
 ) -> Literal["success", "failure"]:
-    """Drive the base to (x, y, yaw) in world, set the torso, choose the arm (section 4.2's
-    five outputs as explicit parameters). ``failure`` (``collision``) when the base box or
-    an arm at the new pose hits the table; held objects move with the robot."""
-    state = read_state(bb)
-    scene = scene_world(bb)
-    hit = base_collides((x, y, yaw), scene)
-    if hit is not None:
-        return fail(bb, "collision", f"MoveBase: the base at {fmt((x, y, yaw))} (m, m, rad) "
-                    f"hits {hit!r} (base half size {BASE_HALF_EXTENTS_M[0]} m)")
-    moved = RobotState((x, y, yaw), torso, state.q_arm_rad, state.held, arm)
-    if _arms_collide(moved, scene):
-        return fail(bb, "collision", f"MoveBase: at {fmt((x, y, yaw))} with the torso at "
-                    f"{torso:.3f} m an arm hits the scene")
-    commit(bb, moved)
-    return "success"
+    """Drive the base to (x, y, yaw) in world, set the torso, choose the arm: section 4.2's
+    five MoveBase outputs as explicit parameters. ``failure`` (``collision``) when the base
+    box or an arm at the new pose hits the table; held objects move with the robot."""
+    return _drive_base(bb, "MoveBasePose", (x, y, yaw), torso, arm)
 
 
-@skill(name="Push", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
+def make_move_base(topology: Topology) -> Skill:
+    """The kinematic twin of the network ``MoveBase`` of :mod:`skills.move_to_push`: the
+    same network and the same mapping of its outputs to a base pose, torso height and arm,
+    then the motion of :func:`move_base_pose` on the PR2 model."""
+    n = weight_count(topology)
+    weights_type: Any = Annotated[
+        tuple[float, ...],
+        Param(*WEIGHT_RANGE, size=n, doc=f"the {topology} network's {n} weights"),
+    ]
+    zeros = (0.0,) * n
+
+    def move_base(
+        bb: Blackboard, rng: np.random.Generator, *, weights: weights_type = zeros
+    ) -> Literal["success", "failure"]:
+        goal = network_goal(bb, rng, topology, weights)
+        if goal is None:
+            return fail(bb, "no_object", "MoveBase: no object_location_world; run "
+                        "RecogniseObject first")
+        pose, torso, arm = goal
+        if base_hits_table(pose, bb.get("table_world"), SAFETY_M):
+            return fail(bb, "collision", f"MoveBase: the base at {fmt(pose)} (m, m, rad) comes "
+                        f"closer than {SAFETY_M} m to the table")
+        return _drive_base(bb, "MoveBase", pose, torso, arm)
+
+    move_base.__doc__ = make_move_base.__doc__
+    # this module postpones annotations; the vector's length is only known here
+    move_base.__annotations__["weights"] = weights_type
+    return skill(move_base, name="MoveBase",
+                 reads=(*_MOVE_READS, "object_location_world", "room_half_m"),
+                 writes=_MOVE_WRITES, backend=BACKEND)
+
+
+@skill(name="Push", reads=_MOVE_READS, writes=(*_MOVE_WRITES, "pushed"), backend=BACKEND)
 def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """Push ``object_position_world`` 5 cm away from the robot with the arm in use.
 
@@ -528,19 +583,21 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
     commit(bb, RobotState(second.state.base_pose_world, second.state.torso_height_m,
                           second.state.q_arm_rad, second.state.held, arm),
            moved_objects={"object": (float(pushed[0]), float(pushed[1]), float(pushed[2]))})
+    bb["pushed"] = True
     return "success"
 
 
 _WHICH = Annotated[float, Param(0.0, 1.0, doc="> 0.5: the first object, else the second")]
 
 
-@skill(name="GraspParam", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
+@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped"),
+       writes=(*_MOVE_WRITES, "objects_grasped"), backend=BACKEND)
 def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
     """Grasp the first (``which`` > 0.5) or second stacking object from above, by IK with
     the arm on its side (then the other). ``failure``: ``no_object``, ``already_holding``
-    or the IK reason."""
+    or the IK reason. Appends the object to ``objects_grasped``."""
     name = stack_object_name(bb, which)
     if name is None:
         return fail(bb, "no_object", "GraspParam: object_positions_world needs two objects")
@@ -558,6 +615,7 @@ def grasp_param(
     held[answer.arm] = name
     commit(bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                           answer.state.q_arm_rad, held, answer.arm))
+    bb["objects_grasped"] = (*(bb.get("objects_grasped") or ()), name)
     return "success"
 
 
@@ -657,7 +715,7 @@ SKILLS: tuple[Skill, ...] = (
     move_gripper_to_pose,
     reachable,
     place_base,
-    move_base,
+    move_base_pose,
     push,
     grasp_param,
     move_gripper_to_stack,
@@ -677,4 +735,12 @@ def register(registry: Registry) -> None:
     """
     for s in SKILLS:
         registry.add(s)
+
+
+def register_move_to_push(registry: Registry, *, topology: Topology = "layered") -> None:
+    """Add the kinematic twins of the move-to-push skills (:mod:`skills.move_to_push`):
+    MoveBase for a ``topology`` network and Push. RecogniseObject has one implementation
+    for both backends (perception is not kinematics)."""
+    registry.add(make_move_base(topology))
+    registry.add(push)
 

@@ -24,7 +24,10 @@ def cli(*args: str) -> tuple[int, str, str]:
     """Exit status, standard output and standard error of ``skillcompose ARGS``."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(list(args))
+        try:
+            code = main(list(args))
+        except SystemExit as exc:  # argparse's usage errors
+            code = exc.code if isinstance(exc.code, int) else -1
     return code, out.getvalue(), err.getvalue()
 
 

@@ -167,7 +167,10 @@ def _error(text: str) -> str:
          "bad.yaml:5:5: state A: state A: unknown key 'skil'; did you mean 'skill'?"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: [X]\n    transitions: {ok: success}\n",
          "bad.yaml:5:12: state A: skill must be a name (text), got a list"),
-        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    params: {v: [1, 2]}\n"
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    params: {v: [[1], 2]}\n"
+         "    transitions: {ok: success}\n",
+         "bad.yaml:6:17: state A: parameter 'v' must be a single value"),
+        ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    params: {v: {a: 1}}\n"
          "    transitions: {ok: success}\n",
          "bad.yaml:6:17: state A: parameter 'v' must be a single value"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    transitions: {ok: 3}\n",

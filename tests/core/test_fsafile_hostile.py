@@ -276,3 +276,23 @@ def test_refused_anchors_raise_no_warnings() -> None:
         warnings.simplefilter("error")  # a warning would be printed around the CLI's one line
         message = _only(VALID + "meta: [&a 1, &a 2, &a 3]\n")
     assert message.count("YAML anchor &a is not allowed") == 3
+
+
+def test_vector_parameters_of_many_states_fit_the_bounds() -> None:
+    """70 states, each with a network of 112 weights (a recurrent MoveBase), are read."""
+    import random
+
+    from skillcompose import dumps_fsa
+
+    rnd = random.Random(0)
+    states = {
+        f"MoveBase_{i}": State("MoveBase", {"weights": tuple(rnd.uniform(-5, 5)
+                                                             for _ in range(112))},
+                               {"success": f"MoveBase_{(i + 1) % 70}", "failure": "failure"})
+        for i in range(70)
+    }
+    text = dumps_fsa(FSA(states, "MoveBase_0"))
+    assert len(text.encode()) > 180_000
+    t0 = time.perf_counter()
+    assert len(loads_fsa(text).states) == 70
+    assert time.perf_counter() - t0 < 1.5

@@ -139,7 +139,10 @@ def test_fuzz_command_lines(args: list[str]) -> None:
     out, err = io.StringIO(), io.StringIO()
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(args)
+        try:
+            code = main(args)
+        except SystemExit as exc:  # argparse's usage errors
+            code = exc.code if isinstance(exc.code, int) else -1
     elapsed = time.perf_counter() - t0
     text = err.getvalue()
     assert elapsed < SECONDS, f"{elapsed:.1f} s"

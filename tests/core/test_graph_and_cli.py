@@ -99,11 +99,15 @@ def test_cli_reports_skill_errors(tmp_path: Path, capsys: pytest.CaptureFixture[
     f = save_fsa(FSA({"X": State("Explode", {}, {"success": "success"})}, "X"),
                  tmp_path / "x.yaml").path
     assert f is not None
-    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trials", "3"]) == 0
+    # every run ended in error: counted, the first shown with where it was raised, exit 1
+    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trials", "3"]) == 1
     captured = capsys.readouterr()
     assert "error" in captured.out
-    assert "3 run(s) ended in error; first in state X: RuntimeError: motor fault" in captured.err
-    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trace"]) == 0
+    assert ("3 run(s) ended in error; the first (run 0) in state X: RuntimeError: motor "
+            "fault\n") in captured.err
+    assert 'demo_skills.py", line 72, in explode' in captured.err
+    assert "every run of" in captured.err
+    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trace"]) == 1
     assert "Traceback" in capsys.readouterr().err
 
 

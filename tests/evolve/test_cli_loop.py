@@ -21,7 +21,7 @@ def test_evolve_edit_run_reseed(tmp_path: Path, capsys: pytest.CaptureFixture[st
     text = capsys.readouterr().out
     assert "toy_fetch: solved" in text and str(out / "best.yaml") in text
     for name in ("best.yaml", "best_evolved.yaml", "best.dot", "best.png", "history.jsonl",
-                 "fitness.png", "checkpoint.pkl", "run.json"):
+                 "fitness.png", "checkpoint.json", "run.json"):
         assert (out / name).is_file(), name
 
     # edit by hand: rename the start state and add a comment, the way a user would

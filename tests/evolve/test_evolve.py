@@ -97,6 +97,22 @@ def _cli(args: list[str]) -> subprocess.Popen[str]:
     )
 
 
+def _children(pid: int) -> set[int]:
+    """The child processes of ``pid`` (Linux; elsewhere none are known)."""
+    try:
+        return {int(c) for t in Path(f"/proc/{pid}/task").iterdir()
+                for c in (t / "children").read_text().split()}
+    except OSError:
+        return set()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
 @pytest.mark.slow
 def test_kill_9_and_resume_equals_an_uninterrupted_run(tmp_path: Path) -> None:
     args = ["examples.toy_task", "--set", "p_fail=0.3", "--set", "tolerance=0.002",
@@ -112,9 +128,18 @@ def test_kill_9_and_resume_equals_an_uninterrupted_run(tmp_path: Path) -> None:
         if hist.exists() and len(hist.read_text().splitlines()) >= 8:
             break
         time.sleep(0.02)
+    workers = _children(proc.pid)
+    assert workers or not Path("/proc/self/task").is_dir(), "no pool workers to check"
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
     assert proc.returncode == -signal.SIGKILL
+    deadline = time.time() + 10
+    while time.time() < deadline and any(map(_alive, workers)):
+        time.sleep(0.05)
+    orphans = [w for w in workers if _alive(w)]
+    for w in orphans:  # never leave one running, even when the test fails
+        os.kill(w, signal.SIGKILL)
+    assert not orphans, "pool workers outlived the evolving process"
     done = [json.loads(line) for line in (killed_dir / "history.jsonl").read_text().splitlines()
             if line.strip().endswith("}")]
     full_hist = [json.loads(x) for x in (tmp_path / "full" / "history.jsonl").read_text().split(
@@ -141,7 +166,8 @@ def test_resume_in_process_equals_an_uninterrupted_run(tmp_path: Path) -> None:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        evolve(task, cfg, seed=2, out_dir=tmp_path / "b", on_generation=stop_after_7)
+        evolve(task, cfg, seed=2, out_dir=tmp_path / "b", on_generation=stop_after_7,
+               simplify_trials=30)
     assert stopped == [7]
     resumed = evolve(task, resume=tmp_path / "b", simplify_trials=30)
     _same_run(full, resumed)
@@ -249,7 +275,7 @@ def test_a_stream_longer_than_the_shared_memory_is_evaluated_whole() -> None:
     ev = ProcessEvaluator(task, skills, workers=2)
     try:
         assert ev.evaluate(j for j in jobs) == expected
-        assert len(ev._results) >= len(jobs)  # it grew twice, from 1024
+        assert len(ev._shared.results) >= len(jobs)  # it grew twice, from 1024
         assert ev.evaluate(jobs[:10]) == expected[:10]
     finally:
         ev.close()

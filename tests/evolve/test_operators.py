@@ -200,3 +200,73 @@ def test_terminating_skills_alone_end_runs(toy: Task, seed: int, size: int) -> N
             c = skills.choices[n.skill]
             for o, t in enumerate(n.edges):
                 assert (t < 0) == (c.name == "PutDown"), (c.name, c.outcomes[o], t)
+
+
+def _start_leads_on(g: Genome) -> bool:
+    return any(t >= 0 and t != g.start for t in g.nodes[g.start].edges)
+
+
+def _has_candidate(g: Genome) -> bool:
+    return any(any(t >= 0 and t != k for t in n.edges) for k, n in g.nodes.items())
+
+
+def test_no_initial_genome_starts_at_a_lone_terminating_skill() -> None:
+    """Pour water, as the paper: CheckSuccess ends every run it runs in. A genome that starts
+    there is one state long whatever its other nodes; before the fix about 17 % of initial
+    genomes did."""
+    from skillcompose import load_task
+
+    skills = SkillSet.from_task(load_task("examples.pour_water"))
+    rng = np.random.default_rng(0)
+    genomes = [initialize(skills, rng, 12) for _ in range(300)]
+    assert all(_start_leads_on(g) for g in genomes if _has_candidate(g))
+    assert sum(_has_candidate(g) for g in genomes) > 290  # the property is not vacuous
+
+
+@settings(max_examples=60, deadline=None)
+@given(s1=seeds, s2=seeds, n1=sizes, n2=sizes)
+def test_mutation_and_crossover_rechoose_a_start_left_without_a_way_on(
+    toy: Task, toy_skills: SkillSet, s1: int, s2: int, n1: int, n2: int
+) -> None:
+    cfg = EvolutionConfig(p_mut=0.6, p_add=0.5, p_del=0.5)
+    g1, rng = _random(toy_skills, s1, n1, 1.0)
+    g2, _ = _random(toy_skills, s2, n2, 1.0)
+    for _ in range(4):
+        crossover(g1, g2, toy_skills, rng)
+        for g in (g1, g2):
+            assert _start_leads_on(g) or not _has_candidate(g)
+            mutate(g, toy_skills, rng, cfg)
+            assert _start_leads_on(g) or not _has_candidate(g)
+            _sound(g, toy_skills, toy)
+
+
+def test_a_start_rewired_to_loop_on_itself_is_rechosen(toy_skills: SkillSet) -> None:
+    from evolve import Node, fix_start
+
+    s = toy_skills.index
+    g = Genome({0: Node(s["FindBlock"], [], [0]), 1: Node(s["PickBlock"], [], [2, 1]),
+                2: Node(s["PutDown"], [], [-1, -2])}, 0)
+    assert fix_start(g, np.random.default_rng(0))
+    assert g.start == 1
+    g.prune()
+    assert sorted(g.nodes) == [1, 2]  # the old start, unreachable now, is pruned
+    assert not fix_start(g, np.random.default_rng(0))
+
+
+def test_a_node_mutation_that_strands_the_start_moves_it(toy_skills: SkillSet) -> None:
+    """FindBlock -> PickBlock -> PutDown: re-routing the start's only edge onto itself used
+    to leave a one-state genome after pruning; now the start moves to PickBlock."""
+    from evolve import Node
+
+    s = toy_skills.index
+    cfg = EvolutionConfig(p_mut=0.3, p_add=0.0, p_del=0.0)
+    stranded = 0
+    for seed in range(300):
+        g = Genome({0: Node(s["FindBlock"], [], [1]), 1: Node(s["PickBlock"], [], [2, 2]),
+                    2: Node(s["PutDown"], [], [-1, -2])}, 0)
+        rng = np.random.default_rng(seed)
+        ops = mutate(g, toy_skills, rng, cfg)
+        stranded += "fix-start" in ops
+        assert _start_leads_on(g) or not _has_candidate(g), (seed, ops, g.nodes)
+        assert len(g) >= 2 or not _has_candidate(g)
+    assert stranded > 5  # the case happened

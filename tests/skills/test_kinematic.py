@@ -47,7 +47,7 @@ def test_register_beside_the_abstract_skills() -> None:
     assert {s.name for s in added} == {s.name for s in kn.SKILLS}
     for s in pw.SKILLS:
         assert sorted(registry.backends(s.name)) == ["kinematic", "sim"]
-    assert registry.resolve("MoveBase", "kinematic") is kn.move_base
+    assert registry.resolve("MoveBasePose", "kinematic") is kn.move_base_pose
 
 
 # -- the pour-water twins ------------------------------------------------------------------
@@ -170,9 +170,9 @@ def test_reachable_agrees_with_ik_ground_truth() -> None:
 def test_move_base_collides_with_the_table() -> None:
     table = Box.table((1.4, 0.3), (0.6, 0.8), 0.75)
     bb = Blackboard({"object_position_world": (1.2, 0.3, 0.83), "table_world": table})
-    assert kn.move_base(bb, 0, x=1.2, y=0.4, yaw=0.0, torso=0.2, arm="left") == "failure"
+    assert kn.move_base_pose(bb, 0, x=1.2, y=0.4, yaw=0.0, torso=0.2, arm="left") == "failure"
     assert reason(bb) == "collision" and "base_pose_world" not in bb
-    assert kn.move_base(bb, 0, x=0.5, y=0.4, yaw=0.0, torso=0.2, arm="left") == "success"
+    assert kn.move_base_pose(bb, 0, x=0.5, y=0.4, yaw=0.0, torso=0.2, arm="left") == "success"
     assert bb["base_pose_world"] == (0.5, 0.4, 0.0) and bb["torso_height_m"] == 0.2
     assert bb["arm_in_use"] == "left"
 
@@ -180,12 +180,12 @@ def test_move_base_collides_with_the_table() -> None:
 def test_push_after_move_base() -> None:
     table = Box.table((1.4, 0.3), (0.6, 0.8), 0.75)
     bb = Blackboard({"object_position_world": (1.2, 0.3, 0.83), "table_world": table})
-    assert kn.move_base(bb, 0, x=0.5, y=0.4, yaw=0.0, torso=0.2, arm="left") == "success"
+    assert kn.move_base_pose(bb, 0, x=0.5, y=0.4, yaw=0.0, torso=0.2, arm="left") == "success"
     assert kn.push(bb, 0) == "success"
     moved = np.subtract(bb["object_position_world"], (1.2, 0.3, 0.83))
     assert math.isclose(float(np.linalg.norm(moved)), kn.PUSH_DISTANCE_M, rel_tol=1e-9)
     far = Blackboard({"object_position_world": (1.2, 0.3, 0.83), "table_world": table})
-    assert kn.move_base(far, 0, x=-0.5, y=0.4, yaw=0.0, torso=0.2, arm="left") == "success"
+    assert kn.move_base_pose(far, 0, x=-0.5, y=0.4, yaw=0.0, torso=0.2, arm="left") == "success"
     assert kn.push(far, 0) == "failure" and reason(far) == "unreachable"
     assert far["object_position_world"] == (1.2, 0.3, 0.83)
 

@@ -1,0 +1,193 @@
+"""Continuing a run from its directory, which may come from someone else.
+
+What a run *means* is recorded when it starts (:func:`run_record`): the task (its name, the
+module that makes it and the settings), the seed, the evolution settings (the per-evaluation
+time limit among them), the seed FSA, the simplification and the fresh-episode check. The
+checkpoint holds that record under its checksum; ``run.json`` shows it to people. On ``--resume``:
+
+- the checkpoint is read as data only (JSON, never a pickle) and its checksum checked;
+- ``run.json`` must say what the checkpoint says (an edited ``run.json``, say another
+  ``p_fail``, is refused, naming what differs);
+- the task is imported only by the module name recorded at the start, and never from a
+  file inside the run directory (a directory received from someone else could carry one);
+- settings given again must equal the recorded ones: only the generation budget may grow
+  (extending the run), and how it is evaluated (backend, workers, when workers are
+  replaced) and checkpointed may change, as none of them changes the result.
+"""
+
+from __future__ import annotations
+
+import importlib.machinery
+import json
+import os
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from skillcompose.task import Task, load_task
+
+from .config import EvolutionConfig
+from .errors import CheckpointError, EvolutionError
+
+__all__ = [
+    "FREE_SETTINGS",
+    "MEANING",
+    "check_record",
+    "differences",
+    "load_recorded_task",
+    "normalise",
+    "run_record",
+]
+
+MEANING = ("task", "task_module", "task_settings", "seed", "seed_fsa", "config", "simplify",
+           "simplify_trials", "check_trials")
+"""The keys of a run record that make the run what it is."""
+
+FREE_SETTINGS = ("generations", "checkpoint_every", "chunks_per_worker", "worker_max_jobs",
+                 "worker_max_growth_mb")
+"""Evolution settings a resume may change: the budget (a longer run is the same run, only
+longer) and bookkeeping that does not change the result (checkpoints, chunking, replacing
+pool workers and Ray actors). ``eval_time_limit`` is not among them: which evaluations
+time out, and so score worst, depends on it."""
+
+
+def normalise(value: Any) -> Any:
+    """``value`` as it reads back from JSON (tuples become lists, numpy scalars numbers)."""
+    return json.loads(json.dumps(value, default=str))
+
+
+def run_record(
+    task: Task, seed: int, cfg: EvolutionConfig, seed_fsa: str | None, simplify: bool,
+    simplify_trials: int, check_trials: int,
+) -> dict[str, Any]:
+    """What a run means, as plain JSON data."""
+    module = task.ref.module if task.ref else None
+    if module is not None and (module.endswith(".py") or "/" in module or "\\" in module):
+        module = str(Path(module).resolve())  # a file: found again from any directory
+    return normalise({
+        "task": task.name,
+        "task_module": module,
+        "task_settings": dict(task.ref.settings) if task.ref else dict(task.settings),
+        "seed": seed,
+        "seed_fsa": seed_fsa,
+        "config": cfg.to_dict(),
+        "simplify": simplify,
+        "simplify_trials": simplify_trials,
+        "check_trials": check_trials,
+    })
+
+
+def _fail(where: str, key: str, value: Any, expected: str) -> CheckpointError:
+    text = json.dumps(value)
+    text = text if len(text) <= 60 else text[:57] + "..."
+    return CheckpointError(f"{where}: {key} = {text} is not valid; expected {expected}")
+
+
+def check_record(record: Any, where: str) -> dict[str, Any]:
+    """``record`` checked value by value (one-line errors naming the key)."""
+    if not isinstance(record, dict):
+        raise CheckpointError(f"{where}: the run's record is not a JSON object")
+    for key in MEANING:
+        if key not in record:
+            raise CheckpointError(f"{where}: the run's record has no {key!r}")
+
+    def text(key: str, optional: bool) -> None:
+        v = record[key]
+        if not (isinstance(v, str) and v and "\0" not in v) and not (optional and v is None):
+            raise _fail(where, key, v, "a name" + (" or null" if optional else ""))
+
+    text("task", False)
+    text("task_module", True)
+    text("seed_fsa", True)
+    settings = record["task_settings"]
+    if not isinstance(settings, dict) or not all(
+        isinstance(v, (str, int, float, bool)) or v is None for v in settings.values()
+    ):
+        raise _fail(where, "task_settings", settings, "an object of plain values")
+    seed = record["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise _fail(where, "seed", seed, "a whole number >= 0")
+    if not isinstance(record["simplify"], bool):
+        raise _fail(where, "simplify", record["simplify"], "true or false")
+    st = record["simplify_trials"]
+    if isinstance(st, bool) or not isinstance(st, int) or st < 1:
+        raise _fail(where, "simplify_trials", st, "a whole number >= 1")
+    ct = record["check_trials"]
+    if isinstance(ct, bool) or not isinstance(ct, int) or ct < 0:
+        raise _fail(where, "check_trials", ct, "a whole number >= 0")
+    if not isinstance(record["config"], dict):
+        raise _fail(where, "config", record["config"], "an object of evolution settings")
+    try:
+        EvolutionConfig.from_dict(record["config"])
+    except (TypeError, EvolutionError) as exc:
+        raise CheckpointError(f"{where}: config: {exc}") from None
+    return record
+
+
+def differences(recorded: Mapping[str, Any], given: Mapping[str, Any]) -> list[str]:
+    """``key: given (the run has recorded)`` for each key of ``given`` that differs."""
+    out = []
+    for key, value in given.items():
+        was = recorded.get(key)
+        if normalise(value) != normalise(was):
+            out.append(f"{key} {_short(value)} (the run has {_short(was)})")
+    return out
+
+
+def _short(v: Any) -> str:
+    text = json.dumps(normalise(v))
+    return text if len(text) <= 50 else text[:47] + "..."
+
+
+def _inside(path: Path, directory: Path) -> bool:
+    try:
+        path.resolve().relative_to(directory.resolve())
+        return True
+    except ValueError:
+        return False
+
+
+def _origins(module: str) -> list[Path]:
+    """Where importing ``module`` would read code from, found without running any."""
+    if module.endswith(".py") or "/" in module or "\\" in module:
+        return [Path(module)]
+    top = module.split(".")[0]
+    if top in sys.modules:  # imported already: nothing new is read from disk for its top
+        spec = getattr(sys.modules[top], "__spec__", None)
+    else:
+        path = [p or os.getcwd() for p in sys.path]
+        if os.getcwd() not in path:  # skillcompose's import adds the current directory
+            path.append(os.getcwd())
+        spec = importlib.machinery.PathFinder.find_spec(top, path)
+    if spec is None:
+        return []
+    places = [Path(spec.origin)] if spec.origin and spec.has_location else []
+    places += [Path(p) for p in (spec.submodule_search_locations or [])]
+    return places
+
+
+def load_recorded_task(record: Mapping[str, Any], run_dir: str | os.PathLike[str]) -> Task:
+    """Import the recorded task module (never one inside ``run_dir``) and make the task
+    with the recorded settings."""
+    module = record.get("task_module")
+    where = Path(run_dir)
+    if not module:
+        raise CheckpointError(
+            f"{where}: the run's task was built in Python, not loaded from a module; resume "
+            "it from Python: evolve(task, resume=...)"
+        )
+    for origin in _origins(module):
+        if _inside(origin, where):
+            raise CheckpointError(
+                f"{where}: the run's task module {module} would be imported from {origin}, "
+                "inside the run directory; code that came with a run directory is never run "
+                "on resume: move it out and check it first"
+            )
+    task = load_task(module, **dict(record["task_settings"]))
+    if task.name != record["task"]:
+        raise CheckpointError(
+            f"{where}: module {module} now makes task {task.name!r}, but the run is of task "
+            f"{record['task']!r}; resume it with the module that made it"
+        )
+    return task

@@ -1,0 +1,73 @@
+"""Writing files atomically with the mode a person expects.
+
+A file is written beside its destination and renamed over it, so a reader (or a run killed
+half-way) never sees half a file. ``tempfile.mkstemp`` creates files readable by their owner
+only (0600); the renamed file would keep that mode. Here it gets the mode of the file it
+replaces, or, for a new file, what ``open()`` would have given it: 0666 less the umask.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["TEMPORARY_MARK", "atomic_write", "file_mode", "temporary_beside", "umask"]
+
+TEMPORARY_MARK = ".tmp-"
+"""Temporary files are named ``.NAME.tmp-XXXXXXXX[SUFFIX]`` beside ``NAME``: a run killed
+while writing leaves at most such files, which the next writer may remove."""
+
+
+def umask() -> int:
+    """The process's umask (read without changing it where the platform allows)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)  # no other way to read it: set and restore at once
+    os.umask(mask)
+    return mask
+
+
+def file_mode(path: str | os.PathLike[str]) -> int:
+    """The permission bits a rewrite of ``path`` should have: those of the existing file,
+    else 0666 less the umask."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except OSError:
+        return 0o666 & ~umask()
+
+
+@contextlib.contextmanager
+def temporary_beside(
+    path: str | os.PathLike[str], suffix: str = ""
+) -> Iterator[Path]:
+    """A temporary path in ``path``'s directory, renamed onto ``path`` with the mode of
+    :func:`file_mode` when the block ends without an exception, removed otherwise."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}{TEMPORARY_MARK}", suffix=suffix, dir=p.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, file_mode(p))
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write(path: str | os.PathLike[str], data: bytes, *, sync: bool = False) -> None:
+    """Write ``data`` to ``path`` atomically (see the module's docstring); ``sync`` also
+    flushes it to the disk before the rename."""
+    with temporary_beside(path) as tmp, open(tmp, "wb") as f:
+        f.write(data)
+        if sync:
+            f.flush()
+            os.fsync(f.fileno())

@@ -1,0 +1,348 @@
+"""Faults during evolution are counted, bounded and reported, the same on every backend;
+results are reported honestly (fresh episodes, exit status). Uses tests/evolve/faulty_task.py,
+whose ``Fault`` skill misbehaves in the way its ``fault`` setting says."""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import time
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pytest
+
+from evolve import EvolutionConfig, Genome, Job, Node, SkillSet, evolve
+from evolve.evaluation import EvalLimits, Faults, ProcessEvaluator, SerialEvaluator
+from skillcompose import FSA, Blackboard, Registry, State, load_fsa, save_fsa, skill
+from skillcompose.cli import main as skillcompose_main
+from skillcompose.task import Task, load_task
+
+FAULTY = "tests.evolve.faulty_task"
+SMALL = EvolutionConfig(population=16, generations=2, initial_nodes=4)
+
+
+def _history(result: Any) -> list[tuple[Any, ...]]:
+    """What must be equal between backends: fitness statistics and deterministic faults."""
+    return [(r.best, r.mean, r.median, r.best_size,
+             {k: v for k, v in r.faults.items() if k not in ("worker_deaths", "recycled")})
+            for r in result.history]
+
+
+def _jobs(task: Task, skill_names: list[str], trials: int = 1) -> list[Job]:
+    """One job per name: a one-state FSA running that skill, every outcome ending the run."""
+    skills = SkillSet.from_task(task)
+    jobs = []
+    for i, name in enumerate(skill_names):
+        k = skills.index[name]
+        edges = [-1] * len(skills.choices[k].outcomes)
+        jobs.append(Job.of(Genome({0: Node(k, [0.5] * skills.choices[k].genes, edges)}, 0),
+                           0, (1, 0, i), trials))
+    return jobs
+
+
+# -- item 9: errors counted, the first shown, exit status --------------------------------------
+def test_evolve_fails_when_every_evaluation_raises(capsys: pytest.CaptureFixture[str]) -> None:
+    code = skillcompose_main([
+        "evolve", FAULTY, "--set", "fault=setup", "--population", "10", "--generations", "1",
+        "--initial-nodes", "3", "--workers", "1", "--quiet", "--check-trials", "5",
+    ])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "faults: 20 raised in 20 evaluations (20 failed entirely)" in err
+    assert "RuntimeError: the world could not be set up" in err
+    assert 'faulty_task.py", line' in err  # the traceback summary names the place
+    assert "every one of the 20 evaluations failed" in err
+
+
+def test_some_errors_are_counted_and_the_run_succeeds(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = skillcompose_main([
+        "evolve", FAULTY, "--set", "fault=raise", "--set", "p_fault=0.5", "--population", "20",
+        "--generations", "2", "--initial-nodes", "4", "--workers", "1", "--quiet",
+        "--check-trials", "5",
+    ])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert " raised in 60 evaluations" in err and "ValueError: the Fault skill broke" in err
+
+
+# -- item 10: the exported FSA on fresh episodes --------------------------------------------
+def test_the_summary_and_run_json_report_fresh_episodes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Table 1 with one trial solves the noisy toy task on a lucky episode: the summary says
+    how the exported FSA does on fresh ones, and warns."""
+    out = tmp_path / "run"
+    code = skillcompose_main([
+        "evolve", "examples.toy_task", "--set", "p_fail=0.4", "--population", "100",
+        "--initial-nodes", "12", "--generations", "60", "--seed", "1", "--workers", "1",
+        "--out", str(out), "--quiet", "--simplify-trials", "50", "--check-trials", "100",
+    ])
+    assert code == 0
+    captured = capsys.readouterr()
+    info = json.loads((out / "run.json").read_text())["result"]
+    fresh = info["fresh"]
+    assert info["solved"] and fresh["episodes"] == 100 and fresh["differs"]
+    assert 0.0 < fresh["success_rate"] < 1.0
+    assert (f"the exported FSA on 100 fresh episodes: {100 * fresh['success_rate']:.1f} % "
+            "reach the target") in captured.out
+    assert "warning: that differs from the evolved fitness 0" in captured.err
+
+
+# -- item 11: deterministic tasks -------------------------------------------------------------
+def test_a_deterministic_task_runs_one_trial() -> None:
+    toy = load_task("examples.toy_task", p_fail=0.0, trials=5)
+
+    def fixed_world(rng: np.random.Generator) -> Blackboard:
+        return Blackboard({"p_fail": 0.0, "block_m": 0.1, "holding": False, "placed": False})
+
+    task = dataclasses.replace(toy, setup=fixed_world, deterministic=True, ref=None)
+    result = evolve(task, SMALL.replace(confirm_trials=20), seed=0, simplify_trials=200,
+                    check_trials=200)
+    assert [r.evaluations for r in result.history] == [16] * len(result.history)
+    assert result.best_fsa.meta["simplified"]["trials"] == 1
+    assert result.fresh["episodes"] == 1
+
+
+# -- item 12: a task's terminal outcomes ----------------------------------------------------
+@skill
+def check_time(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "time_up"]:
+    """End the run: ``time_up`` when the block was not placed."""
+    return "success" if bb.get("placed", False) else "time_up"
+
+
+def test_a_task_declares_its_terminal_outcomes(tmp_path: Path) -> None:
+    toy = load_task("examples.toy_task", p_fail=0.0)
+    registry = Registry()
+    from examples import toy_task
+
+    toy_task.register(registry)
+    registry.add(check_time)
+    task = dataclasses.replace(
+        toy, registry=registry, terminal_skills=("CheckTime",), ref=None,
+        terminals=("success", "failure", "time_up"),
+    )
+    skills = SkillSet.from_task(task)
+    choice = skills.choices[skills.index["CheckTime"]]
+    assert [choice.fixed_edge(k) for k in range(2)] == [-1, -3]  # both end the run
+    result = evolve(task, SMALL.replace(generations=3, initial_nodes=8), seed=2,
+                    out_dir=tmp_path / "run", check_trials=5)
+    fsa = load_fsa(tmp_path / "run" / "best_evolved.yaml")
+    assert fsa.terminals == ("success", "failure", "time_up")
+    checks = [st for st in result.evolved_fsa.states.values() if st.skill == "CheckTime"]
+    for st in checks:
+        assert st.transitions == {"success": "success", "time_up": "time_up"}
+
+
+# -- item 13: one step limit ------------------------------------------------------------------
+def test_run_with_a_task_uses_the_tasks_step_limit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    loop = FSA({"W": State("Wait", {}, {"success": "W"})}, "W", step_limit=100)
+    path = save_fsa(loop, tmp_path / "loop.yaml").path
+    assert path is not None
+    code = skillcompose_main(["run", path, "--task", "examples.toy_task", "--set",
+                              "step_limit=7", "--trials", "3"])
+    captured = capsys.readouterr()
+    assert code == 0
+    assert "timeout" in captured.out and "mean steps 7.00" in captured.out
+    assert "step limit 7 from task toy_fetch (the file's 100 applies" in captured.err
+
+
+# -- items 14 and 15: time limits, fault counts, the same on every backend -----------------
+@pytest.mark.slow
+def test_a_hanging_skill_times_out_the_same_on_every_backend(tmp_path: Path) -> None:
+    task = load_task(FAULTY, fault="hang", p_fault=0.3)
+    cfg = SMALL.replace(eval_time_limit=0.2, generations=1)
+    runs = []
+    for backend, workers in (("serial", 1), ("process", 1), ("process", 2)):
+        t = time.perf_counter()
+        result = evolve(task, cfg, seed=4, backend=backend, workers=workers,
+                        simplify_result=False, check_trials=0,
+                        out_dir=tmp_path / f"{backend}{workers}")
+        assert time.perf_counter() - t < 30
+        runs.append(result)
+    timeouts = [r.faults["timeouts"] for r in runs[0].history]
+    assert sum(timeouts) > 0
+    assert _history(runs[0]) == _history(runs[1]) == _history(runs[2])
+    lines = (tmp_path / "serial1" / "history.jsonl").read_text().splitlines()
+    assert [json.loads(x)["faults"]["timeouts"] for x in lines] == timeouts
+    info = json.loads((tmp_path / "process2" / "run.json").read_text())
+    assert info["result"]["faults"]["timeouts"] == sum(timeouts)
+
+
+def test_a_worker_stuck_past_the_limit_is_killed() -> None:
+    """A skill the alarm cannot reach (SIGALRM blocked): the parent kills its worker after
+    the limit and a grace period; only that job scores worst, as a time-out."""
+    task = load_task(FAULTY, fault="stuck")
+    jobs = _jobs(task, ["FindBlock", "Fault", "Carry", "FindBlock"])
+    expected = SerialEvaluator(task, SkillSet.from_task(task)).evaluate([jobs[0], jobs[2],
+                                                                        jobs[3]])
+    ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=2,
+                          limits=EvalLimits(time_limit=0.2))
+    try:
+        t = time.perf_counter()
+        out = ev.evaluate(jobs)
+        assert time.perf_counter() - t < 10
+        assert out[1] == task.worst and [out[0], out[2], out[3]] == expected
+        assert ev.faults.timeouts == 1 and ev.faults.worker_deaths == 0
+        assert ev.evaluate(jobs[:1]) == expected[:1]  # a fresh worker took its place
+    finally:
+        ev.close()
+
+
+def test_faults_are_recorded_per_generation_and_shown(tmp_path: Path) -> None:
+    task = load_task(FAULTY, fault="raise", p_fault=0.5)
+    stream = io.StringIO()
+    serial = evolve(task, SMALL, seed=1, out_dir=tmp_path / "s", progress=stream,
+                    check_trials=5)
+    pool = evolve(task, SMALL, seed=1, backend="process", workers=2, check_trials=5)
+    assert _history(serial) == _history(pool)
+    assert serial.faults.first_error == pool.faults.first_error  # the first in job order
+    raised = [r.faults["raised"] for r in serial.history]
+    assert raised[0] > 0 and serial.faults.raised == sum(raised)
+    assert serial.faults.first_error is not None
+    assert "ValueError: the Fault skill broke" in serial.faults.first_error
+    assert f"faults: {raised[0]} raised" in stream.getvalue()
+    lines = (tmp_path / "s" / "history.jsonl").read_text().splitlines()
+    assert [json.loads(x)["faults"]["raised"] for x in lines] == raised
+    info = json.loads((tmp_path / "s" / "run.json").read_text())["result"]
+    assert info["faults"]["raised"] == sum(raised)
+    assert "ValueError" in info["first_error"]
+
+
+def test_dead_workers_are_counted_as_lost_jobs() -> None:
+    task = load_task("tests.evolve.crashy_task", p_fail=0.0)
+    result = evolve(task, SMALL, seed=0, backend="process", workers=2, simplify_result=False,
+                    check_trials=0)
+    serial = evolve(task, SMALL, seed=0, simplify_result=False, check_trials=0)
+    lost = [r.faults["lost"] for r in result.history]
+    assert sum(lost) > 0 and sum(r.faults["worker_deaths"] for r in result.history) >= sum(lost)
+    # in this process Crash raises instead: the same evaluations fail, counted as raised
+    assert [r.faults["failed"] for r in serial.history] == \
+        [r.faults["failed"] for r in result.history]
+    assert [(r.best, r.mean) for r in serial.history] == [(r.best, r.mean) for r in result.history]
+
+
+# -- item 16: SystemExit and KeyboardInterrupt inside a skill ---------------------------------
+def test_sys_exit_in_a_skill_is_a_fault_not_the_end(capsys: pytest.CaptureFixture[str]) -> None:
+    code = skillcompose_main([
+        "evolve", FAULTY, "--set", "fault=exit", "--population", "12", "--generations", "1",
+        "--initial-nodes", "4", "--workers", "1", "--quiet", "--check-trials", "5",
+    ])
+    captured = capsys.readouterr()
+    assert code == 0 and "faulty_exit: " in captured.out
+    assert "raised in 24 evaluations" in captured.err and "SystemExit: 0" in captured.err
+
+
+def test_keyboard_interrupt_raised_by_a_skill_is_a_fault() -> None:
+    task = load_task(FAULTY, fault="interrupt")
+    result = evolve(task, SMALL, seed=0, simplify_result=False, check_trials=0)
+    assert result.faults.raised > 0 and "KeyboardInterrupt" in str(result.faults.first_error)
+
+
+def test_a_real_ctrl_c_still_stops_the_run() -> None:
+    task = load_task(FAULTY, fault="sigint")
+    with pytest.raises(KeyboardInterrupt):
+        evolve(task, SMALL, seed=0, simplify_result=False, check_trials=0)
+
+
+# -- item 17: workers are recycled --------------------------------------------------------------
+def _rss_mb(pid: int) -> float:
+    with open(f"/proc/{pid}/statm", "rb") as f:
+        return int(f.read().split()[1]) * 4096 / 2**20
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="needs /proc")
+def test_leaking_workers_are_replaced_and_results_do_not_change() -> None:
+    leaky = load_task(FAULTY, fault="leak", leak_mb=8.0)
+    clean = load_task(FAULTY, fault="leak", leak_mb=0.0)
+    jobs = _jobs(leaky, ["Fault", "FindBlock", "Carry", "Fault"] * 15)  # 240 MB leaked
+    expected = SerialEvaluator(clean, SkillSet.from_task(clean)).evaluate(jobs)
+    biggest = {}
+    for name, limits, recycled in (("growth", EvalLimits(max_growth_mb=40.0), 4),
+                                   ("jobs", EvalLimits(max_jobs=10), 3),
+                                   ("none", EvalLimits(), 0)):
+        ev = ProcessEvaluator(leaky, SkillSet.from_task(leaky), workers=2, limits=limits)
+        try:
+            assert ev.evaluate(jobs) == expected
+            assert ev.faults.total == 0
+            assert (ev.faults.recycled >= recycled) if recycled else ev.faults.recycled == 0
+            biggest[name] = max(_rss_mb(w.process.pid) for w in ev._pool)
+        finally:
+            ev.close()
+    assert biggest["growth"] < biggest["none"] - 50
+
+
+# -- item 18 (and 14 on Ray): a dead or stuck actor costs only its own job ---------------------
+@pytest.mark.slow
+def test_ray_reruns_a_dead_actors_chunk_job_by_job() -> None:
+    ray = pytest.importorskip("ray")
+    from evolve.evaluation import RayEvaluator
+
+    crashy = load_task(FAULTY, fault="crash")
+    hang = load_task(FAULTY, fault="hang")
+    try:
+        ev = RayEvaluator(crashy, SkillSet.from_task(crashy), workers=1, chunks_per_worker=1)
+        try:
+            jobs = _jobs(crashy, ["FindBlock", "Carry", "Fault", "FindBlock"])
+            good = SerialEvaluator(crashy, SkillSet.from_task(crashy)).evaluate(
+                [jobs[0], jobs[1], jobs[0], jobs[3]])
+            out = ev.evaluate(jobs)
+            assert out[2] == crashy.worst and [out[0], out[1], out[3]] == \
+                [good[0], good[1], good[3]]
+            assert ev.lost == 1 and ev.faults.lost == 1
+        finally:
+            ev.close()
+        ev = RayEvaluator(hang, SkillSet.from_task(hang), workers=1, chunks_per_worker=1,
+                          limits=EvalLimits(time_limit=0.3))
+        try:
+            jobs = _jobs(hang, ["FindBlock", "Fault", "Carry"])
+            out = ev.evaluate(jobs)
+            assert out[1] == hang.worst and ev.faults.timeouts == 1 and out[0] != hang.worst
+        finally:
+            ev.close()
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+
+
+def test_faults_add_up() -> None:
+    a = Faults()
+    a.count(3 << 2, 3)  # every episode raised: failed entirely
+    a.count(1 << 2, 3)
+    a.count(1, 3)  # a time-out
+    assert (a.jobs, a.failed, a.raised, a.timeouts) == (3, 2, 4, 1)
+    assert a.describe() == "4 raised, 1 time-out"
+
+
+def test_simplification_and_the_fresh_check_survive_sys_exit() -> None:
+    from evolve import check_fresh, simplify
+
+    task = load_task(FAULTY, fault="exit", p_fault=0.5)
+    fsa = FSA({"F": State("FindBlock", {}, {"success": "X"}),
+               "X": State("Fault", {}, {"success": "success", "failure": "failure"})}, "F")
+    simplified = simplify(task, fsa, seed=0, trials=20)
+    assert simplified.meta["simplified"]["trials"] == 20
+    fresh = check_fresh(task, fsa, seed=0, trials=20)
+    assert 0 < fresh["raised"] < 20 and fresh["episodes"] == 20
+
+
+@pytest.mark.slow
+def test_faults_on_ray_equal_the_serial_run() -> None:
+    ray = pytest.importorskip("ray")
+    task = load_task(FAULTY, fault="raise", p_fault=0.5)
+    try:
+        serial = evolve(task, SMALL, seed=3, simplify_result=False, check_trials=0)
+        on_ray = evolve(task, SMALL, seed=3, backend="ray", workers=2, simplify_result=False,
+                        check_trials=0)
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+    assert sum(r.faults["raised"] for r in serial.history) > 0
+    assert _history(serial) == _history(on_ray)
+    assert serial.faults.first_error == on_ray.faults.first_error

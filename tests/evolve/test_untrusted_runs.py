@@ -1,0 +1,177 @@
+"""A run directory received from someone else: resuming it never runs code that came with
+it, a damaged checkpoint is detected, an edited run.json is refused, and every problem is
+one line."""
+
+from __future__ import annotations
+
+import json
+import pickle
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from evolve import CheckpointError, RunDir
+from skillcompose.cli import main as skillcompose_main
+
+ARGS = ["examples.toy_task", "--set", "p_fail=0.3", "--population", "20", "--initial-nodes",
+        "6", "--generations", "4", "--checkpoint-every", "2", "--seed", "1", "--quiet",
+        "--simplify-trials", "10", "--backend", "serial"]
+EVIL = "import pathlib\npathlib.Path({marker!r}).write_text('ran')\n"
+
+
+@pytest.fixture
+def run_dir(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Path:
+    """A run stopped after its checkpoint of generation 2 (generations 3, 4 to go)."""
+    d = tmp_path / "received"
+    assert skillcompose_main(["evolve", *ARGS, "--generations", "2", "--out", str(d)]) == 0
+    rd = RunDir(d)
+    state = rd.load_checkpoint()
+    state["run"]["config"]["generations"] = 4  # as if it had been started for 4 and killed
+    rd.save_checkpoint(state)
+    info = rd.load_run_info()
+    info["config"]["generations"] = 4
+    rd.write_run_info(info)
+    capsys.readouterr()
+    return d
+
+
+def _resume(d: Path, capsys: pytest.CaptureFixture[str], *more: str) -> tuple[int, str]:
+    code = skillcompose_main(["evolve", "--resume", str(d), "--quiet", *more])
+    err = capsys.readouterr().err
+    return code, err
+
+
+def _one_line_error(code: int, err: str) -> str:
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def _craft(d: Path, change: Any) -> None:
+    """Change the checkpoint's state and write it with a correct checksum, as someone who
+    crafts a run directory would."""
+    rd = RunDir(d)
+    state = rd.load_checkpoint()
+    change(state)
+    rd.save_checkpoint(state)
+
+
+def _deep(depth: int) -> list[Any]:
+    out: list[Any] = []
+    for _ in range(depth):
+        out = [out]
+    return out
+
+
+class _Payload:
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (Path.write_text, (self.marker, "ran"))
+
+
+def test_the_resumable_run_resumes(run_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, err = _resume(run_dir, capsys)
+    assert code == 0, err
+    assert [json.loads(x)["generation"] for x in
+            (run_dir / "history.jsonl").read_text().splitlines()] == [0, 1, 2, 3, 4]
+
+
+def test_a_pickle_is_never_loaded(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    marker = tmp_path / "pwned"
+    evil = pickle.dumps(_Payload(marker))
+    (run_dir / "checkpoint.json").unlink()
+    (run_dir / "checkpoint.pkl").write_bytes(evil)  # the format of older versions
+    err = _one_line_error(*_resume(run_dir, capsys))
+    assert "pickle" in err and "never loaded" in err
+    (run_dir / "checkpoint.json").write_bytes(evil)
+    err = _one_line_error(*_resume(run_dir, capsys))
+    assert "damaged" in err
+    assert not marker.exists()
+
+
+def test_a_task_module_inside_the_run_directory_is_never_imported(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    marker = tmp_path / "pwned"
+    (run_dir / "evil_task.py").write_text(EVIL.format(marker=str(marker)))
+    # run.json alone names it: refused, it differs from the checkpoint
+    info = json.loads((run_dir / "run.json").read_text())
+    info["task_module"] = str(run_dir / "evil_task.py")
+    (run_dir / "run.json").write_text(json.dumps(info))
+    err = _one_line_error(*_resume(run_dir, capsys))
+    assert "differs from the run's checkpoint in task_module" in err
+    # run.json and a checkpoint with a recomputed checksum name it: refused, it is inside
+    for module in (str(run_dir / "evil_task.py"), "evil_task"):
+        info["task_module"] = module
+        (run_dir / "run.json").write_text(json.dumps(info))
+        _craft(run_dir, lambda st, m=module: st["run"].update(task_module=m))
+        monkeypatch.chdir(run_dir)  # where a dotted name would be found
+        err = _one_line_error(*_resume(run_dir, capsys))
+        assert "inside the run directory" in err and "never run" in err
+    assert not marker.exists()
+
+
+def test_an_edited_run_json_does_not_resume_as_another_task(
+    run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    before = (run_dir / "history.jsonl").read_text()
+    info = json.loads((run_dir / "run.json").read_text())
+    info["task_settings"]["p_fail"] = 0.9
+    (run_dir / "run.json").write_text(json.dumps(info))
+    err = _one_line_error(*_resume(run_dir, capsys))
+    assert "task_settings" in err and "0.9" in err and "0.3" in err
+    assert (run_dir / "history.jsonl").read_text() == before
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda st: st["run"].update(seed="x"), "seed = \"x\" is not valid"),
+    (lambda st: st["run"].update(task_settings=[1]), "task_settings = [1] is not valid"),
+    (lambda st: st["run"].update(config={"population": -3}), "population = -3"),
+    (lambda st: st["run"].pop("task"), "has no 'task'"),
+    (lambda st: st.update(population=[[1, 2]]), "malformed"),
+    (lambda st: st.update(population="x" * 5), "malformed"),
+    (lambda st: st["population"][0][0].__setitem__(0, 999), "malformed"),
+    (lambda st: st.update(rng={"bit_generator": "MT19937"}), "malformed"),
+    (lambda st: st.update(generation=-1), "malformed"),
+    (lambda st: st.update(cache=[[["a"], 1, 1]]), "malformed"),
+    (lambda st: st["population"][0].__setitem__(0, _deep(900)), "malformed"),
+    (lambda st: st["run"]["task_settings"].update(p_fail=_deep(900)), "task_settings ="),
+])
+def test_malformed_values_give_one_line(
+    run_dir: Path, capsys: pytest.CaptureFixture[str], edit: Any, expected: str
+) -> None:
+    rd = RunDir(run_dir)
+    good_info = rd.load_run_info()
+    _craft(run_dir, edit)
+    state = rd.load_checkpoint()
+    if isinstance(state.get("run"), dict):  # run.json says the same, so only the values speak
+        rd.write_run_info({**good_info, **state["run"]})
+    err = _one_line_error(*_resume(run_dir, capsys))
+    assert expected in err, err
+
+
+def test_a_malformed_run_json_gives_one_line(
+    run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for text in ("{not json", "[1, 2]", '{"task": 1}'):
+        (run_dir / "run.json").write_text(text)
+        _one_line_error(*_resume(run_dir, capsys))
+
+
+def test_every_single_bit_flip_is_detected(run_dir: Path) -> None:
+    rd = RunDir(run_dir)
+    data = (run_dir / "checkpoint.json").read_bytes()
+    assert rd.parse_checkpoint(data) == rd.load_checkpoint()
+    flipped = bytearray(data)
+    for bit in range(8 * len(data)):  # every bit of the file, header and content
+        flipped[bit // 8] ^= 1 << (bit % 8)
+        with pytest.raises(CheckpointError) as info:
+            rd.parse_checkpoint(bytes(flipped))
+        assert "\n" not in str(info.value)
+        flipped[bit // 8] ^= 1 << (bit % 8)
