@@ -42,16 +42,33 @@ _UNSET_UNTIL_GIVEN = ("seed", "preset", "simplify_trials", "check_trials")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``skillcompose evolve``, each checked where it is parsed."""
+    from skillcompose.arguments import (
+        MAX_TRIALS,
+        MAX_WORKERS,
+        existing_dir,
+        module_or_file,
+        number,
+        output_dir,
+        seed,
+        setting,
+        whole,
+    )
+
+    big = 10**7  # generations, individuals, jobs: bounded, far beyond any real run
     p.add_argument(
-        "task", nargs="?",
+        "task", nargs="?", type=module_or_file,
         help="task module (dotted name or .py path) defining make_task(**settings); "
         "may be left out with --resume",
     )
     p.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
+                   type=setting,
                    help="a task setting passed to make_task (repeatable), e.g. p_fail=0.2")
-    p.add_argument("--generations", type=int, help="generation budget (default 1000)")
-    p.add_argument("--population", type=int, help="individuals N (default 300, table 1)")
-    p.add_argument("--initial-nodes", type=int, help="initial nodes S (default 50, table 1)")
+    p.add_argument("--generations", type=whole(0, big), help="generation budget (default 1000)")
+    p.add_argument("--population", type=whole(2, 10**6),
+                   help="individuals N (default 300, table 1)")
+    p.add_argument("--initial-nodes", type=whole(1, 10_000),
+                   help="initial nodes S (default 50, table 1)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
                    help="starting settings: paper (table 1, the default), robust (our best "
                    "options: N=600, 3 shared trials, elitism 2, tournament 3, S=12, sigma "
@@ -59,44 +76,49 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "parameters, e.g. a network's weights: N=150, 20 shared trials, "
                    "every mutated node's parameters perturbed, confirmed on 200 fresh "
                    "trials); the flags below override it")
-    p.add_argument("--tournament", type=int, help="tournament size (default 2)")
-    p.add_argument("--param-sigma", type=float,
-                   help="standard deviation of parameter noise in [0, 1] units (default 0.05)")
-    p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="evaluation workers (default: all cores for process/ray)")
+    p.add_argument("--tournament", type=whole(1, 10**6), help="tournament size (default 2)")
+    p.add_argument("--param-sigma", type=number(0.0, 1.0),
+                   help="standard deviation of parameter noise in [0, 1] units, from 0 to 1 "
+                   "(default 0.05)")
+    p.add_argument("--seed", type=seed, default=0, help="run seed (default 0)")
+    p.add_argument("--workers", type=whole(1, MAX_WORKERS), default=None,
+                   help="evaluation workers, at least 1 (default: all cores for process/ray)")
     p.add_argument("--backend", choices=BACKENDS, default=None,
                    help="where to evaluate: serial, a local process pool, or Ray "
                    "(default: a process pool on all cores, serial on one core or with "
                    "--workers 1)")
-    p.add_argument("--out", help="run directory: best FSA, drawing, history, plot, checkpoints")
-    p.add_argument("--resume", metavar="DIR", help="continue the run in DIR from its checkpoint")
+    p.add_argument("--out", type=output_dir,
+                   help="run directory: best FSA, drawing, history, plot, checkpoints")
+    p.add_argument("--resume", metavar="DIR", type=existing_dir,
+                   help="continue the run in DIR from its checkpoint")
     p.add_argument("--seed-fsa", metavar="FILE",
                    help="an FSA file placed in the first population (hand-edit, then re-evolve)")
-    p.add_argument("--trials", type=int, help="episodes per evaluation (default: the task's)")
-    p.add_argument("--elitism", type=int, help="copy the best K unchanged (default 0)")
+    p.add_argument("--trials", type=whole(1, MAX_TRIALS),
+                   help=f"episodes per evaluation, 1 to {MAX_TRIALS} (default: the task's)")
+    p.add_argument("--elitism", type=whole(0, 10**6), help="copy the best K unchanged (default 0)")
     p.add_argument("--crn", action="store_true",
                    help="common random numbers: a generation's individuals meet the same worlds")
     p.add_argument("--cache", action="store_true", help="do not re-evaluate unchanged genomes")
-    p.add_argument("--cache-refresh", type=int,
+    p.add_argument("--cache-refresh", type=whole(0, MAX_TRIALS),
                    help="with --cache, fresh trials added each time a genome reappears")
     p.add_argument("--parsimony", action="store_true", help="fewer states wins at equal fitness")
-    p.add_argument("--confirm", type=int, dest="confirm_trials",
+    p.add_argument("--confirm", type=whole(0, MAX_TRIALS), dest="confirm_trials",
                    help="fresh trials that must confirm a solution before the run stops")
-    p.add_argument("--checkpoint-every", type=int, help="generations between checkpoints (10)")
+    p.add_argument("--checkpoint-every", type=whole(1, big),
+                   help="generations between checkpoints (10)")
     p.add_argument("--no-simplify", action="store_true",
                    help="export the best FSA as evolved, without simplification")
-    p.add_argument("--simplify-trials", type=int, default=200,
-                   help="fresh trials per simplification test (default 200)")
-    p.add_argument("--check-trials", type=int, default=200,
+    p.add_argument("--simplify-trials", type=whole(1, MAX_TRIALS), default=200,
+                   help="fresh trials per simplification test, at least 1 (default 200)")
+    p.add_argument("--check-trials", type=whole(0, MAX_TRIALS), default=200,
                    help="fresh episodes on which the exported FSA is measured at the end "
                    "(default 200; 0: none)")
-    p.add_argument("--eval-time-limit", type=float, metavar="SECONDS",
+    p.add_argument("--eval-time-limit", type=number(0.0, 10.0**7), metavar="SECONDS",
                    help="wall-clock limit of one evaluation; past it, it scores worst and "
                    "counts as a time-out (default 60; 0: no limit)")
-    p.add_argument("--worker-max-jobs", type=int, metavar="N",
+    p.add_argument("--worker-max-jobs", type=whole(0, big), metavar="N",
                    help="replace a worker after N evaluations (default 0: never)")
-    p.add_argument("--worker-max-growth-mb", type=float, metavar="MB",
+    p.add_argument("--worker-max-growth-mb", type=number(0.0, 10.0**7), metavar="MB",
                    help="replace a worker whose memory grew by more than MB (default 1024; "
                    "0: never)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -13,10 +13,11 @@ import os
 import sys
 import traceback
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
+from .arguments import MAX_TRIALS, UsageError, module_or_file, output_file, seed, setting, whole
 from .blackboard import DELETED, Blackboard
 from .errors import SkillcomposeError
 from .executor import compile_fsa, error_summary, summarize, trial_rngs
@@ -25,7 +26,16 @@ from .progress import progress_bar
 from .registry import Registry
 from .task import Task, load_task, parse_settings
 
-__all__ = ["SUBCOMMAND_MODULES", "build_parser", "main"]
+__all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
+
+DRAWING_SUFFIXES = (".dot", ".gv", ".mmd", ".mermaid", ".svg", ".png", ".pdf")
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line: which argument, what is allowed, what was given."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 SUBCOMMAND_MODULES = (
     "evolve.cli",
@@ -35,33 +45,40 @@ SUBCOMMAND_MODULES = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="skillcompose",
         description="Compose robot skills into finite state automata, run and evolve them.",
+        epilog="Exit status: 0 done, 1 failed (an output that cannot be written, an "
+        "unexpected error), 2 usage error (an argument not allowed, an invalid FSA file, a "
+        "task or skills module that does not load), 130 interrupted.",
     )
+    parser.add_argument("--traceback", action="store_true",
+                        help="show the traceback of an unexpected error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     def skills_args(p: argparse.ArgumentParser) -> None:
         p.add_argument(
-            "--skills", action="append", default=[], metavar="MODULE",
+            "--skills", action="append", default=[], metavar="MODULE", type=module_or_file,
             help="a module (dotted name or .py file) or FSA file whose skills to load; "
             "repeatable",
         )
         p.add_argument(
-            "--task", metavar="TASK",
+            "--task", metavar="TASK", type=module_or_file,
             help="a task module (make_task): its skills and, for run, its world per trial",
         )
         p.add_argument(
             "--set", action="append", default=[], metavar="NAME=VALUE", dest="settings",
-            help="a task setting, e.g. --set p_fail=0.3; repeatable",
+            type=setting, help="a task setting, e.g. --set p_fail=0.3; repeatable",
         )
-        p.add_argument("--backend", help="which implementation of each skill to run")
+        p.add_argument("--backend", help="which implementation of each skill to run (one "
+                       "that a loaded skill has; `skills` lists them)")
 
     p = sub.add_parser("run", help="run an FSA file and report its outcomes")
     p.add_argument("file", help="the FSA file (YAML)")
     skills_args(p)
-    p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
-    p.add_argument("--trials", type=int, default=1, help="number of runs (default 1)")
+    p.add_argument("--seed", type=seed, default=0, help="run seed (default 0)")
+    p.add_argument("--trials", type=whole(1, MAX_TRIALS), default=1,
+                   help=f"number of runs, 1 to {MAX_TRIALS} (default 1)")
     p.add_argument("--trace", action="store_true",
                    help="print each step of the first run, and a traceback on error")
     p.add_argument("--propagate", action="store_true",
@@ -75,8 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("show", help="draw an FSA file (DOT, Mermaid, SVG, PNG)")
     p.add_argument("file")
-    p.add_argument("-o", "--output", help="output file: .dot .mmd .svg .png .pdf "
-                   "(default: DOT on standard output)")
+    p.add_argument("-o", "--output", type=output_file(*DRAWING_SUFFIXES),
+                   help="output file: .dot .mmd .svg .png .pdf (default: DOT on standard "
+                   "output)")
     p.add_argument("--mermaid", action="store_true", help="print Mermaid instead of DOT")
     p.add_argument("--no-params", action="store_true", help="leave parameters out")
     p.set_defaults(func=cmd_show)
@@ -99,16 +117,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run a subcommand; return its exit status (see the parser's epilog).
+
+    Errors are printed as one line (an invalid FSA file lists its problems), never as a
+    traceback unless ``--traceback``, or ``run --trace`` / ``--propagate``, asks for one.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(argv)  # a usage error: one line and SystemExit(2)
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
         return 2
+    loud = any(getattr(args, flag, False) for flag in ("traceback", "trace", "propagate"))
+    prog = f"skillcompose {args.command}"
     try:
         return int(func(args))
     except SkillcomposeError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -117,6 +142,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141
+    except OSError as exc:  # an output that cannot be written, a disk that is full
+        if loud:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{prog}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:
+        if loud:
+            raise
+        print(f"{prog}: error: unexpected {type(exc).__name__}: {exc} (rerun with "
+              "`skillcompose --traceback ...` to see where)", file=sys.stderr)
+        return 1
 
 
 # ---------------------------------------------------------------------------------------
@@ -127,7 +164,7 @@ def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
         registry = task.registry
     else:
         if args.settings:
-            raise SkillcomposeError("--set needs --task: settings belong to a task")
+            raise UsageError("--set needs --task: settings belong to a task")
         registry = Registry()
     if args.backend:
         registry.backend = args.backend
@@ -136,7 +173,19 @@ def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
     for target in args.skills:
         registry.load_module(target)
     registry.load_entry_points()
+    if args.backend and len(registry):
+        check_backend(registry, args.backend)
     return registry, task
+
+
+def check_backend(registry: Registry, backend: str) -> None:
+    """Raise :class:`UsageError` unless some skill of ``registry`` has ``backend``."""
+    known = sorted({b for name in registry.names() for b in registry.backends(name)})
+    if backend not in known:
+        raise UsageError(
+            f"--backend {backend!r}: no loaded skill has this backend; the loaded skills "
+            f"have {', '.join(known) or 'none'}"
+        )
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -146,8 +195,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SkillcomposeError(
             f"{args.file}: no skills loaded; give --skills MODULE or --task TASK"
         )
-    if args.trials < 1:
-        raise SkillcomposeError(f"--trials must be at least 1, got {args.trials}")
     try:  # with a task, the task's step limit (as in evolution); else the file's
         compiled = task.compile(fsa, args.backend) if task is not None else \
             compile_fsa(fsa, registry, args.backend)

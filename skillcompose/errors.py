@@ -28,6 +28,10 @@ __all__ = [
 ]
 
 
+MAX_SHOWN_PROBLEMS = 20
+"""An error message lists at most this many problems, then counts the rest."""
+
+
 class SkillcomposeError(Exception):
     """Base class of every error skillcompose raises on purpose."""
 
@@ -113,10 +117,15 @@ class FSAValidationError(SkillcomposeError, ValueError):
     def __init__(self, problems: Iterable[Problem], path: str | Path | None = None) -> None:
         self.problems = tuple(problems)
         self.path = path
-        lines = [p.render(path) for p in self.problems]
-        head = "invalid FSA" if len(lines) != 1 else lines[0]
-        if len(lines) != 1:
-            head += f" ({len(lines)} problems):\n  " + "\n  ".join(lines)
+        n = len(self.problems)
+        lines = [p.render(path) for p in self.problems[:MAX_SHOWN_PROBLEMS]]
+        if n == 1:
+            head = lines[0]
+        else:
+            shown = f"; the first {len(lines)}" if n > len(lines) else ""
+            head = f"invalid FSA ({n} problems{shown}):\n  " + "\n  ".join(lines)
+            if n > len(lines):
+                head += f"\n  ... and {n - len(lines)} more (fix these first)"
         super().__init__(head)
 
 

@@ -31,6 +31,7 @@ __all__ = [
     "DEFAULT_TERMINALS",
     "ERROR",
     "FSA",
+    "MAX_STEP_LIMIT",
     "PREEMPTED",
     "RESERVED_OUTCOMES",
     "TIMEOUT",
@@ -44,6 +45,8 @@ PREEMPTED = "preempted"
 RESERVED_OUTCOMES = (TIMEOUT, ERROR, PREEMPTED)
 DEFAULT_TERMINALS = ("success", "failure")
 DEFAULT_STEP_LIMIT = 100
+MAX_STEP_LIMIT = 1_000_000
+"""The largest step limit: a run of an FSA that loops ends (``timeout``) within seconds."""
 
 
 @dataclass(frozen=True)
@@ -129,9 +132,10 @@ class FSA:
         """Problems visible without knowing the skills."""
         out: list[Problem] = []
         if not isinstance(self.step_limit, int) or isinstance(self.step_limit, bool) or \
-                self.step_limit < 1:
+                not 1 <= self.step_limit <= MAX_STEP_LIMIT:
             out.append(self._problem(
-                f"step_limit must be a positive whole number, got {self.step_limit!r}",
+                f"step_limit must be a positive whole number, got {self.step_limit!r} "
+                f"(at most {MAX_STEP_LIMIT})",
                 fix="set `step_limit: 20` (the paper's value)", at=("step_limit",),
             ))
         if not self.terminals:

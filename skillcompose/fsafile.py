@@ -22,10 +22,18 @@ A file looks like this (every key but ``format``, ``start`` and ``states`` is op
       ...
 
 A transition's target is a state name or a terminal outcome, which ends the run. Parameters
-are in the skill's own units. Loading accepts plain YAML only (no tags, anchors or merge keys)
-and reports every problem with its file, line and column, the state and key, what was
-expected and the fix. Saving an FSA that was loaded from a file edits that file's document in
-place, so comments, key order and formatting survive.
+are in the skill's own units. Saving an FSA that was loaded from a file edits that file's
+document in place, so comments, key order and formatting survive.
+
+Loading accepts plain YAML 1.2 data only: no anchors, aliases or merge keys, and no tags but
+the core ones (``!!str``, ``!!int``, ``!!float``, ``!!bool``, ``!!null`` on single values,
+``!!seq`` and ``!!map``), whose values are checked. A file costs little whatever it holds: at
+most :data:`MAX_FILE_BYTES`, nested at most :data:`MAX_DEPTH` levels, at most
+:data:`MAX_VALUES` values and :data:`MAX_STATES` states, whole numbers within 64 bits, floats
+finite unless written ``.inf``/``.nan``, ``step_limit`` at most
+:data:`~skillcompose.fsa.MAX_STEP_LIMIT`. The text is parsed once; every problem is reported
+with its file, line and column, the state and key, what was expected and the fix (the first
+20, then a count of the rest).
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ import copy
 import io
 import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -41,17 +50,31 @@ from typing import TYPE_CHECKING, Any
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.events import (
+    AliasEvent,
+    CollectionEndEvent,
+    CollectionStartEvent,
+    DocumentStartEvent,
+    ScalarEvent,
+    SequenceStartEvent,
+)
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+from ruamel.yaml.parser import RoundTripParser
+from ruamel.yaml.reader import ReaderError
 
 from .errors import FSAFileError, FSAValidationError, Problem
 from .files import atomic_write
-from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State
+from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, MAX_STEP_LIMIT, Source, State
 
 if TYPE_CHECKING:
     from .registry import Registry
 
 __all__ = [
     "FORMAT_VERSION",
+    "MAX_DEPTH",
+    "MAX_FILE_BYTES",
+    "MAX_STATES",
+    "MAX_VALUES",
     "STATE_KEYS",
     "TOP_LEVEL_KEYS",
     "dumps_fsa",
@@ -66,10 +89,17 @@ REQUIRED_TOP_LEVEL = ("format", "start", "states")
 STATE_KEYS = ("skill", "params", "transitions", "time_limit")
 REQUIRED_STATE_KEYS = ("skill", "transitions")
 
+MAX_FILE_BYTES = 256 * 1024
+"""The largest FSA file read; a larger one is refused before it is parsed."""
+MAX_DEPTH = 32
+"""The deepest nesting of mappings and lists (a state's transitions are 4 levels deep)."""
+MAX_STATES = 500
+"""The most states an FSA file may hold."""
+MAX_VALUES = 10_000
+"""The most values (names, numbers, lists, mappings) a file may hold: 500 states of 20."""
+_MAX_OPEN_BRACKETS = 256  # `[` and `{` open at once in the raw text, before parsing
+
 _STD = "tag:yaml.org,2002:"
-_ALLOWED_TAGS = frozenset(
-    _STD + t for t in ("str", "int", "float", "bool", "null", "map", "seq", "timestamp")
-)
 _HEADER = (
     "FSA file of skillcompose. Edit freely: rename states, change parameters (in the\n"
     "skill's units), re-route outcomes (to a state or a terminal outcome), add comments.\n"
@@ -84,11 +114,26 @@ def load_fsa(path: str | os.PathLike[str]) -> FSA:
     """Read an FSA file. Raises :class:`FSAFileError` naming file, line and fix."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        with p.open("rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
     except FileNotFoundError:
         raise FSAFileError([Problem("file not found", fix="check the path")], str(p)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FSAFileError([Problem(f"cannot read the file: {exc}")], str(p)) from None
+    except OSError as exc:
+        raise FSAFileError(
+            [Problem(f"cannot read the file: {exc.strerror or exc}")], str(p)
+        ) from None
+    if len(data) > MAX_FILE_BYTES:
+        line, col = _line_col(data[:MAX_FILE_BYTES].decode("utf-8", "replace"),
+                              MAX_FILE_BYTES)
+        raise FSAFileError([_too_large(line, col)], str(p))
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line, col = _line_col(data[:exc.start].decode("utf-8", "replace"), exc.start)
+        raise FSAFileError([Problem(
+            f"byte 0x{data[exc.start]:02x} is not UTF-8 text", line=line, column=col,
+            fix="save the file as UTF-8",
+        )], str(p)) from None
     return loads_fsa(text, str(p))
 
 
@@ -97,12 +142,247 @@ def loads_fsa(text: str, path: str | None = None) -> FSA:
     return _Reader(text, path).read()
 
 
+def _line_col(text: str, offset: int) -> tuple[int, int]:
+    """1-based line and column of character ``offset`` of ``text``."""
+    offset = min(offset, len(text))
+    line = text.count("\n", 0, offset) + 1
+    return line, offset - (text.rfind("\n", 0, offset) + 1) + 1
+
+
+def _too_large(line: int, column: int) -> Problem:
+    return Problem(
+        f"the file is larger than {MAX_FILE_BYTES // 1024} KiB, the most an FSA file may be",
+        fix=f"keep FSA files under {MAX_FILE_BYTES // 1024} KiB (at most {MAX_STATES} "
+        "states); split a large FSA into nested FSAs", line=line, column=column,
+    )
+
+
+class _Refused(Exception):
+    """Reading stops at once: the file would cost too much (or is refused outright)."""
+
+    def __init__(self, problem: Problem) -> None:
+        super().__init__(problem.message)
+        self.problem = problem
+
+
+def _mark_problem(mark: Any, message: str, fix: str | None = None) -> Problem:
+    return Problem(message, fix=fix, line=mark.line + 1, column=mark.column + 1)
+
+
+class _GuardedParser(RoundTripParser):
+    """The YAML parser with the format's limits checked on each event, before the
+    (recursive) composer builds a node from it.
+
+    Nesting deeper than :data:`MAX_DEPTH` and aliases stop the parse; anchors, tags other
+    than the core schema's and YAML versions other than 1.2 are noted in ``problems``.
+    """
+
+    def __init__(self, loader: Any) -> None:
+        super().__init__(loader)
+        self.problems: list[Problem] = []
+        self.depth = 0
+        self.values = 0
+        self.last_mark: Any = None
+
+    def _next(self) -> None:
+        """Produce the next event, if none is waiting, and inspect it once."""
+        if self.current_event is None and self.state:
+            self.current_event = self.state()
+            if self.current_event is not None:
+                self._inspect(self.current_event)
+
+    def check_event(self, *choices: Any) -> bool:
+        self._next()
+        return bool(super().check_event(*choices))
+
+    def peek_event(self) -> Any:
+        self._next()
+        return super().peek_event()
+
+    def get_event(self) -> Any:
+        self._next()
+        return super().get_event()
+
+    def _inspect(self, event: Any) -> None:
+        mark = event.start_mark
+        self.last_mark = mark
+        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
+            self.values += 1
+            if self.values > MAX_VALUES:
+                raise _Refused(_mark_problem(
+                    mark, f"the file holds more than {MAX_VALUES} values (names, numbers, "
+                    "lists and mappings)", fix=f"an FSA file has at most {MAX_STATES} "
+                    "states; split a large FSA into nested FSAs",
+                ))
+        if isinstance(event, CollectionStartEvent):
+            self.depth += 1
+            if self.depth > MAX_DEPTH:
+                raise _Refused(_mark_problem(
+                    mark, f"the data is nested more than {MAX_DEPTH} levels deep",
+                    fix="FSA files are shallow: a state is 4 levels deep; flatten this value",
+                ))
+        elif isinstance(event, CollectionEndEvent):
+            self.depth -= 1
+        elif isinstance(event, AliasEvent):
+            raise _Refused(_mark_problem(
+                mark, f"YAML aliases (*{event.anchor}) are not allowed in FSA files",
+                fix="write the value out in full",
+            ))
+        elif isinstance(event, DocumentStartEvent):
+            version = getattr(event, "version", None)
+            if version is not None and tuple(version) != (1, 2):
+                self.problems.append(_mark_problem(
+                    mark, f"%YAML {'.'.join(map(str, version))} documents are not read: "
+                    "FSA files are YAML 1.2", fix="remove the %YAML line",
+                ))
+        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
+            if event.anchor is not None:
+                self.problems.append(_mark_problem(
+                    mark, f"YAML anchor &{event.anchor} is not allowed in FSA files",
+                    fix="remove the anchor and write each value out in full",
+                ))
+                event.anchor = None  # reported: the composer need not keep (or warn about) it
+            tag = _tag_text(event.tag)
+            kind = ("scalar" if isinstance(event, ScalarEvent) else
+                    "seq" if isinstance(event, SequenceStartEvent) else "map")
+            if tag and tag != "!" and tag not in _EXPLICIT_TAGS[kind]:
+                allowed = ", ".join(sorted(_short_tag(t) for t in _EXPLICIT_TAGS[kind]))
+                self.problems.append(_mark_problem(
+                    mark, f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
+                    f"data: no code, and on a {_KIND_NAMES[kind]} only {allowed})",
+                    fix=f"remove {_short_tag(tag)}",
+                ))
+
+
+def _tag_text(tag: Any) -> str:
+    if tag is None:
+        return ""
+    return tag if isinstance(tag, str) else str(getattr(tag, "value", None) or tag)
+
+
+def _short_tag(tag: str) -> str:
+    return "!!" + tag[len(_STD):] if tag.startswith(_STD) else tag
+
+
+_KIND_NAMES = {"scalar": "single value", "seq": "list", "map": "mapping"}
+_EXPLICIT_TAGS = {
+    "scalar": frozenset(_STD + t for t in ("str", "int", "float", "bool", "null")),
+    "seq": frozenset({_STD + "seq"}),
+    "map": frozenset({_STD + "map"}),
+}
+_INT_RE = re.compile(r"[-+]?(?:0b[01_]*[01][01_]*|0o[0-7_]*[0-7][0-7_]*"
+                     r"|0x[0-9a-fA-F_]*[0-9a-fA-F][0-9a-fA-F_]*|[0-9_]*[0-9][0-9_]*)")
+_FLOAT_RE = re.compile(r"[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?(?:[eE][-+]?[0-9]+)?"
+                       r"|\.[0-9_]*[0-9][0-9_]*(?:[eE][-+]?[0-9]+)?)")
+_INF_RE = re.compile(r"[-+]?\.(?:inf|Inf|INF)")
+_NAN_RE = re.compile(r"\.(?:nan|NaN|NAN)")
+_BOOLS = {"true": True, "True": True, "TRUE": True,
+          "false": False, "False": False, "FALSE": False}
+_NULLS = frozenset({"", "~", "null", "Null", "NULL"})
+_INT_MIN, _INT_MAX = -(2**63), 2**63 - 1
+
+
+class _BadScalar(ValueError):
+    """A scalar cannot be converted; the message says why, ``fix`` how to repair it."""
+
+    def __init__(self, message: str, fix: str) -> None:
+        super().__init__(message)
+        self.fix = fix
+
+
+def _to_int(text: str) -> int:
+    fix = "write a whole number such as 3, or quote it to keep it as text"
+    if not _INT_RE.fullmatch(text):
+        raise _BadScalar(f"{_clip(text)!r} is not a whole number", fix)
+    s = text.replace("_", "")
+    sign = -1 if s[0] == "-" else 1
+    body = s.lstrip("+-")
+    base = {"0b": 2, "0o": 8, "0x": 16}.get(body[:2], 10)
+    digits = (body[2:] if base != 10 else body).lstrip("0") or "0"
+    # more than 64 digits is more than 64 bits in any base: out of range (and int() is slow)
+    value = None if len(digits) > 64 else sign * int(digits, base)
+    if value is None or not _INT_MIN <= value <= _INT_MAX:
+        raise _BadScalar(
+            f"whole number {_clip(text)} is out of range [-2**63, 2**63 - 1]",
+            "use a smaller number, or quote it to keep it as text",
+        )
+    return value
+
+
+def _to_float(text: str) -> float:
+    if _INF_RE.fullmatch(text):
+        return -math.inf if text.startswith("-") else math.inf
+    if _NAN_RE.fullmatch(text):
+        return math.nan
+    fix = "write a number such as 0.5, 1e-3, .inf or .nan, or quote it to keep it as text"
+    if not _FLOAT_RE.fullmatch(text):
+        raise _BadScalar(f"{_clip(text)!r} is not a number", fix)
+    value = float(text.replace("_", ""))
+    if math.isinf(value):
+        raise _BadScalar(
+            f"number {_clip(text)} is too large (beyond ±1.8e308)",
+            "write .inf or -.inf for infinity, or a smaller number",
+        )
+    return value
+
+
+def _str_tag(tag: Any) -> Any:
+    """The text tag, of the same kind as ``tag`` (a string or the YAML library's Tag)."""
+    if isinstance(tag, str):
+        return _STD + "str"
+    return type(tag)(suffix=_STD + "str")
+
+
+_BRACKETS = re.compile(r"[\[\]{}]")
+_DIRECTIVE = re.compile(r"^%YAML(?:[ \t]+(\S*))?", re.MULTILINE)
+
+
+def _check_flow_depth(text: str) -> None:
+    """Refuse more than ``_MAX_OPEN_BRACKETS`` brackets open at once, before the YAML
+    scanner, which slows down with the square of the flow nesting (2,000 levels: seconds).
+    Brackets inside text count too; the parser then checks the real depth exactly."""
+    if text.count("[") + text.count("{") <= _MAX_OPEN_BRACKETS:
+        return
+    depth = 0
+    for m in _BRACKETS.finditer(text):
+        if m.group() in "[{":
+            depth += 1
+            if depth > _MAX_OPEN_BRACKETS:
+                line, col = _line_col(text, m.start())
+                raise _Refused(Problem(
+                    f"more than {_MAX_OPEN_BRACKETS} brackets are open here: the data is "
+                    f"nested more than {MAX_DEPTH} levels deep",
+                    fix="FSA files are shallow: a state is 4 levels deep; flatten this value",
+                    line=line, column=col,
+                ))
+        elif depth:
+            depth -= 1
+
+
+def _check_directives(text: str) -> None:
+    """Refuse ``%YAML`` versions other than 1.2 before the parser, which asserts on some."""
+    if "%YAML" not in text:
+        return
+    for m in _DIRECTIVE.finditer(text):
+        if m.group(1) != "1.2":
+            line, col = _line_col(text, m.start())
+            raise _Refused(Problem(
+                f"%YAML {m.group(1) or ''} documents are not read: FSA files are YAML 1.2",
+                fix="remove the %YAML line", line=line, column=col,
+            ))
+
+
+def _clip(text: str, n: int = 40) -> str:
+    return text if len(text) <= n else text[:n - 3] + "..."
+
+
 class _Reader:
     def __init__(self, text: str, path: str | None) -> None:
         self.text = text
         self.path = path
         self.problems: list[Problem] = []
         self.positions: dict[tuple[str, ...], tuple[int, int]] = {}
+        self.values: dict[int, Any] = {}  # id(scalar node) -> its value, set by check_tree
 
     # -- helpers ---------------------------------------------------------------------------
     def fail(
@@ -121,60 +401,97 @@ class _Reader:
     def mark(self, path: tuple[str, ...], node: Node) -> None:
         self.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
 
-    def check_plain(self, node: Node, seen: set[int]) -> bool:
-        """Reject tags, anchors, aliases and merge keys anywhere in the tree."""
-        if id(node) in seen:
-            self.fail(node, "YAML aliases (*name) are not allowed in FSA files",
-                      fix="write the value out in full")
+    def check_tree(self, root: Node, constructor: Any) -> None:
+        """Convert every scalar once and check every mapping's keys, iteratively.
+
+        What passes here is what the round-trip constructor builds without error: core tags
+        only, on the right kind of node; numbers in range; no duplicate or non-scalar keys.
+        Problems name the value's path (``meta.a[2]``).
+        """
+        stack: list[tuple[Node, str]] = [(root, "")]
+        while stack:
+            node, label = stack.pop()
+            if isinstance(node, ScalarNode):
+                self.convert(node, label, constructor)
+            elif isinstance(node, SequenceNode):
+                stack.extend((v, f"{label}[{i}]") for i, v in enumerate(node.value))
+            elif isinstance(node, MappingNode):
+                self.check_keys(node, label or "the top level", constructor, stack)
+
+    def check_keys(self, node: MappingNode, label: str, constructor: Any,
+                   stack: list[tuple[Node, str]]) -> None:
+        by_value: dict[Any, Node] = {}
+        by_text: dict[str, Node] = {}
+        prefix = "" if label == "the top level" else label + "."
+        for k, v in node.value:
+            if not isinstance(k, ScalarNode):
+                self.fail(k, f"{label}: keys must be plain names, got {_node_kind(k)}",
+                          fix="write the key as text")
+                continue
+            stack.append((v, prefix + _clip(str(k.value), 30)))
+            if not self.convert(k, label, constructor):
+                continue
+            value = self.values[id(k)]
+            text = str(value)
+            nan = isinstance(value, float) and math.isnan(value)
+            first = by_text.get(text) or (None if nan else by_value.get(value))
+            if first is not None:
+                self.fail(k, f"{label}: key {_clip(text)!r} appears twice (first on line "
+                          f"{first.start_mark.line + 1})", key=text, fix="keep one of them")
+                continue
+            by_text[text] = k
+            if not nan:
+                by_value[value] = k
+
+    def convert(self, node: ScalarNode, label: str, constructor: Any) -> bool:
+        """Set ``self.values[id(node)]`` from a scalar with a core tag; False (and a problem
+        naming ``label``) when it cannot be converted."""
+        v = node.value
+        tag = _tag_text(node.tag)
+        name = tag[len(_STD):] if tag.startswith(_STD) else tag
+        try:
+            if name == "null":
+                if v not in _NULLS:
+                    raise _BadScalar(f"{_clip(v)!r} is not empty (!!null)",
+                                     "remove the !!null tag or the value")
+                value: Any = None
+            elif name == "bool":
+                if v not in _BOOLS:
+                    raise _BadScalar(f"{_clip(v)!r} is not true or false",
+                                     "write true or false")
+                value = _BOOLS[v]
+            elif name == "int":
+                value = _to_int(v)
+            elif name == "float":
+                value = _to_float(v)
+            elif name == "timestamp":  # an unquoted date: kept as its text, if it is a date
+                try:
+                    constructor.construct_yaml_timestamp(node)
+                except Exception:
+                    raise _BadScalar(f"{_clip(v)!r} is not a valid date",
+                                     "quote it to keep it as text") from None
+                value = v
+            elif name in ("value", "yaml"):  # `=` and friends: text
+                node.tag = _str_tag(node.tag)
+                value = v
+            elif name == "str":
+                value = v
+            else:
+                raise _BadScalar(f"YAML tag {tag!r} is not allowed in FSA files",
+                                 f"remove {_short_tag(tag)}")
+        except _BadScalar as exc:
+            self.fail(node, f"{label}: {exc}" if label else str(exc), fix=exc.fix)
             return False
-        seen.add(id(node))
-        tag = node.tag if isinstance(node.tag, str) else getattr(node.tag, "value", "")
-        ok = True
-        if str(tag) not in _ALLOWED_TAGS:
-            self.fail(node, f"YAML tag {tag!r} is not allowed in FSA files "
-                      "(they are plain data: no tags, no code)", fix=f"remove {tag}")
-            return False
-        if getattr(node, "anchor", None):
-            self.fail(node, f"YAML anchor &{node.anchor} is not allowed in FSA files",
-                      fix="remove the anchor and write each value out in full")
-            ok = False
-        if isinstance(node, MappingNode):
-            for k, v in node.value:
-                ok = self.check_plain(k, seen) and ok
-                ok = self.check_plain(v, seen) and ok
-        elif isinstance(node, SequenceNode):
-            for v in node.value:
-                ok = self.check_plain(v, seen) and ok
-        return ok
+        self.values[id(node)] = value
+        return True
 
     def scalar(self, node: Node) -> Any:
         if not isinstance(node, ScalarNode):
             return self.plain(node)
-        tag = str(node.tag)
-        v = node.value
-        if tag.endswith(":null"):
-            return None
-        if tag.endswith(":bool"):
-            return v.lower() == "true"
-        if tag.endswith(":int"):
-            s = v.replace("_", "")
-            sign = -1 if s.startswith("-") else 1
-            body = s.lstrip("+-")
-            if body[:2].lower() in ("0x", "0o", "0b"):
-                return sign * int(body, 0)
-            return sign * int(body, 10)
-        if tag.endswith(":float"):
-            low = v.lower().lstrip("+")
-            if low == ".inf":
-                return math.inf
-            if low == "-.inf":
-                return -math.inf
-            if low == ".nan":
-                return math.nan
-            return float(v.replace("_", ""))
-        return v
+        return self.values[id(node)]
 
     def plain(self, node: Node) -> Any:
+        """The node as plain Python data (its depth is bounded by :data:`MAX_DEPTH`)."""
         if isinstance(node, MappingNode):
             return {str(self.scalar(k)): self.plain(v) for k, v in node.value}
         if isinstance(node, SequenceNode):
@@ -224,32 +541,65 @@ class _Reader:
 
     # -- the format ------------------------------------------------------------------------
     def read(self) -> FSA:
-        yaml = YAML(typ="rt")
         try:
-            root = yaml.compose(self.text)
-        except MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            line = mark.line + 1 if mark is not None else None
-            col = mark.column + 1 if mark is not None else None
-            what = exc.problem or exc.context or "malformed YAML"
-            self.problems.append(Problem(
-                f"not valid YAML: {what}", fix="check indentation, colons and quotes near "
-                "this line", line=line, column=col,
-            ))
-            self.raise_if_problems()
-            raise AssertionError("unreachable") from None
-        except YAMLError as exc:
-            self.problems.append(Problem(f"not valid YAML: {exc}"))
-            self.raise_if_problems()
-            raise AssertionError("unreachable") from None
+            yaml, root = self.compose()
+        except _Refused as exc:
+            raise FSAFileError([exc.problem], self.path) from None
+        self.raise_if_problems()
         if root is None:
             self.problems.append(Problem(
                 "the file is empty", fix="an FSA file needs `format: 1`, `start:` and "
-                "`states:`"))
+                "`states:`", line=1, column=1))
             self.raise_if_problems()
         assert root is not None
-        self.check_plain(root, set())
+        self.check_tree(root, yaml.constructor)
         self.raise_if_problems()
+        return self.read_format(root, yaml.constructor)
+
+    def compose(self) -> tuple[YAML, Node | None]:
+        """Parse the text once into a node tree, within the format's limits."""
+        if len(self.text) > MAX_FILE_BYTES:
+            raise _Refused(_too_large(*_line_col(self.text, MAX_FILE_BYTES)))
+        _check_flow_depth(self.text)
+        _check_directives(self.text)
+        yaml = YAML(typ="rt")
+        yaml.Parser = _GuardedParser
+        parser: _GuardedParser | None = None
+        try:
+            parser = yaml.parser
+            root = yaml.compose(self.text)
+        except _Refused:
+            raise
+        except MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            line = mark.line + 1 if mark is not None else 1
+            col = mark.column + 1 if mark is not None else 1
+            what = exc.problem or exc.context or "malformed YAML"
+            raise _Refused(Problem(
+                f"not valid YAML: {what}", fix="check indentation, colons and quotes near "
+                "this line", line=line, column=col,
+            )) from None
+        except ReaderError as exc:
+            line, col = _line_col(self.text, exc.position)
+            char = exc.character
+            code = f"{char:04x}" if isinstance(char, int) else str(char)
+            raise _Refused(Problem(
+                f"character U+{code.upper()} is not allowed in YAML ({exc.reason})",
+                fix="delete it, or write it as an escape in a double-quoted string",
+                line=line, column=col,
+            )) from None
+        except (YAMLError, RecursionError, ValueError, TypeError, LookupError,
+                AttributeError, AssertionError) as exc:  # the YAML library's own slips
+            mark = parser.last_mark if parser is not None else None
+            line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+            raise _Refused(Problem(
+                f"not valid YAML: {type(exc).__name__}: {_clip(str(exc), 80)}",
+                fix="check the YAML near this line", line=line, column=col,
+            )) from None
+        self.problems.extend(parser.problems)
+        return yaml, root
+
+    def read_format(self, root: Node, constructor: Any) -> FSA:
         top = self.mapping(root, "the top level", TOP_LEVEL_KEYS,
                            fix="an FSA file is a mapping with format, start and states")
         self.raise_if_problems()
@@ -281,9 +631,10 @@ class _Reader:
             node = top["step_limit"][1]
             step_limit = self.scalar(node)
             if not isinstance(step_limit, int) or isinstance(step_limit, bool) or \
-                    step_limit < 1:
+                    not 1 <= step_limit <= MAX_STEP_LIMIT:
                 self.fail(node, f"step_limit must be a positive whole number, got "
-                          f"{step_limit!r}", key="step_limit", fix="for example `step_limit: 20`")
+                          f"{_clip(repr(step_limit))} (at most {MAX_STEP_LIMIT})",
+                          key="step_limit", fix="for example `step_limit: 20`")
                 step_limit = DEFAULT_STEP_LIMIT
         terminals: tuple[str, ...] = DEFAULT_TERMINALS
         if "terminals" in top:
@@ -304,22 +655,31 @@ class _Reader:
                 meta = self.plain(node)
         states: dict[str, State] = {}
         if "states" in top:
-            states = self.read_states(top["states"][1])
+            states = self.read_states(*top["states"])
         self.raise_if_problems()
-        document = YAML(typ="rt").load(self.text)
+        try:  # the same parse, now built as the round-trip document the writer edits
+            document = constructor.construct_document(root)
+        except Exception as exc:  # checked above; a YAML library change must not leak
+            mark = getattr(exc, "problem_mark", None) or root.start_mark
+            raise FSAFileError([_mark_problem(mark, f"cannot read this value: {exc}")],
+                               self.path) from None
         source = Source(self.path, dict(self.positions), document)
         try:
             return FSA(states, start, terminals, step_limit, name, meta, source)
         except FSAValidationError as exc:
             raise FSAFileError(exc.problems, self.path) from None
 
-    def read_states(self, node: Node) -> dict[str, State]:
+    def read_states(self, key: Node, node: Node) -> dict[str, State]:
         smap = self.mapping(node, "states", None,
                             fix="write each state as `<name>: {skill: ..., transitions: ...}`")
         if smap is None:
             return {}
         if not smap:
             self.fail(node, "states is empty", fix="add at least one state")
+        if len(smap) > MAX_STATES:
+            self.fail(key, f"{len(smap)} states; an FSA file holds at most {MAX_STATES}",
+                      fix="split it into nested FSAs (registry.add_fsa)")
+            return {}
         states: dict[str, State] = {}
         for sname, (kn, vn) in smap.items():
             self.mark(("states", sname), kn)

@@ -17,6 +17,7 @@ import importlib
 import importlib.util
 import os
 import sys
+import traceback
 from collections.abc import Iterable, Iterator
 from importlib import metadata
 from pathlib import Path
@@ -199,7 +200,36 @@ def _sig(spec: SkillSpec) -> list[str]:
 
 
 def import_target(target: str) -> ModuleType:
-    """Import a dotted module name or a ``.py`` file path."""
+    """Import a dotted module name or a ``.py`` file path.
+
+    A file's own directory is put on the import path, so that it imports the modules
+    beside it. A dotted name is looked up from the current directory too (as ``python -m``
+    does) and, when this is a source checkout, from its root (``examples.pour_water`` from
+    anywhere). Whatever the module raises while it is imported becomes a
+    :class:`RegistryError` naming its file and line.
+    """
+    try:
+        return _import_target(target)
+    except RegistryError:
+        raise
+    except Exception as exc:
+        raise RegistryError(f"cannot import {target}: {describe_exception(exc)}") from exc
+
+
+def describe_exception(exc: BaseException) -> str:
+    """``file:line: Type: message`` of the innermost frame (or of a syntax error)."""
+    if isinstance(exc, SyntaxError):
+        where = f"{exc.filename}:{exc.lineno}: " if exc.filename else ""
+        return f"{where}{type(exc).__name__}: {exc.msg}"
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f"{frames[-1].filename}:{frames[-1].lineno}: " if frames else ""
+    return f"{where}{type(exc).__name__}: {exc}"
+
+
+_SOURCE_ROOT = Path(__file__).resolve().parents[1]
+
+
+def _import_target(target: str) -> ModuleType:
     if target.endswith(".py") or "/" in target or "\\" in target:
         path = Path(target)
         if not path.is_file():
@@ -210,17 +240,26 @@ def import_target(target: str) -> ModuleType:
         spec = importlib.util.spec_from_file_location(mod_name, path)
         if spec is None or spec.loader is None:
             raise RegistryError(f"cannot import {target} as a Python module")
+        here = str(path.resolve().parent)
+        if here not in sys.path:  # the modules beside the file
+            sys.path.insert(0, here)
         module = importlib.util.module_from_spec(spec)
         sys.modules[mod_name] = module
         try:
             spec.loader.exec_module(module)
-        except Exception:
+        except BaseException:
             del sys.modules[mod_name]
             raise
         return module
     cwd = os.getcwd()
     if cwd not in sys.path:  # as `python -m` does: modules next to the user are found
         sys.path.append(cwd)
+    top = target.split(".", 1)[0]
+    root = str(_SOURCE_ROOT)
+    if root not in sys.path and importlib.util.find_spec(top) is None and (
+        (_SOURCE_ROOT / top / "__init__.py").is_file() or (_SOURCE_ROOT / f"{top}.py").is_file()
+    ):
+        sys.path.append(root)  # a source checkout's own packages (examples.*)
     try:
         return importlib.import_module(target)
     except ModuleNotFoundError as exc:

@@ -43,14 +43,16 @@ from typing import Any
 
 import numpy as np
 
+from .arguments import MAX_TRIALS, MAX_WORKERS, module_or_file, output_file, seed, setting, whole
 from .errors import SkillcomposeError
 from .executor import compile_fsa
-from .fsa import ERROR, FSA, TIMEOUT
+from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 from .fsafile import load_fsa
 from .progress import progress_bar
 from .task import Task, TaskRef, parse_settings
 
 __all__ = [
+    "MAX_SWEEP_POINTS",
     "RobustnessError",
     "SweepRow",
     "format_table",
@@ -61,6 +63,10 @@ __all__ = [
     "table",
     "write_csv",
 ]
+
+
+MAX_SWEEP_POINTS = 1000
+"""The most values one sweep may have."""
 
 
 class RobustnessError(SkillcomposeError, ValueError):
@@ -267,24 +273,32 @@ def parse_values(text: str) -> list[float]:
 
     Raises :class:`RobustnessError` with the accepted forms on anything else.
     """
-    forms = "write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. 0,0.2,0.5)"
+    forms = (f"write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. "
+             f"0,0.2,0.5) of finite numbers, at most {MAX_SWEEP_POINTS} values")
     text = text.strip()
+    shown = text if len(text) <= 40 else text[:37] + "..."
     try:
         if ":" in text:
             parts = text.split(":")
-            if len(parts) != 3:
+            if len(parts) != 3 or len(parts[2].strip()) > 12:
                 raise ValueError(text)
             start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
-            if count < 1:
-                raise RobustnessError(f"sweep {text!r}: COUNT must be at least 1; {forms}")
+            if not 1 <= count <= MAX_SWEEP_POINTS:
+                raise RobustnessError(
+                    f"sweep {shown!r}: COUNT must be from 1 to {MAX_SWEEP_POINTS}; {forms}"
+                )
+            if not (math.isfinite(start) and math.isfinite(stop)):
+                raise ValueError(text)
             if count == 1:
                 return [start]
             return [round(float(v), 12) for v in np.linspace(start, stop, count)]
-        values = [float(p) for p in text.split(",") if p.strip()]
+        values = [float(p) for p in text.split(",", MAX_SWEEP_POINTS) if p.strip()]
     except ValueError:
-        raise RobustnessError(f"cannot read the sweep {text!r}; {forms}") from None
+        raise RobustnessError(f"cannot read the sweep {shown!r}; {forms}") from None
     if not values:
-        raise RobustnessError(f"the sweep {text!r} has no values; {forms}")
+        raise RobustnessError(f"the sweep {shown!r} has no values; {forms}")
+    if len(values) > MAX_SWEEP_POINTS or not all(math.isfinite(v) for v in values):
+        raise RobustnessError(f"cannot read the sweep {shown!r}; {forms}")
     return values
 
 
@@ -393,31 +407,52 @@ def register_cli(subparsers: Any) -> None:
         "fitness with standard-deviation bars.",
     )
     p.add_argument("file", help="the FSA file (YAML)")
-    p.add_argument("--task", required=True, metavar="TASK",
+    p.add_argument("--task", required=True, metavar="TASK", type=module_or_file,
                    help="the task module (dotted name or .py file) with make_task(**settings)")
     p.add_argument("--p-fail", dest="values", default="0:1:21", metavar="SWEEP",
-                   help="values: START:STOP:COUNT or a comma list (default 0:1:21)")
-    p.add_argument("--setting", default="p_fail",
+                   type=_sweep_arg, help="values: START:STOP:COUNT or a comma list, at most "
+                   f"{MAX_SWEEP_POINTS} finite values (default 0:1:21)")
+    p.add_argument("--setting", default="p_fail", type=_setting_name,
                    help="the task setting the values go to (default p_fail)")
-    p.add_argument("--reps", type=int, default=5000, help="runs per value (default 5000)")
-    p.add_argument("-o", "--output", metavar="FIG",
+    p.add_argument("--reps", type=whole(1, MAX_TRIALS), default=5000,
+                   help=f"runs per value, 1 to {MAX_TRIALS} (default 5000)")
+    p.add_argument("-o", "--output", metavar="FIG", type=output_file(".png", ".svg", ".pdf"),
                    help="the plot: .png, .svg or .pdf (default: no plot)")
-    p.add_argument("--csv", metavar="CSV",
+    p.add_argument("--csv", metavar="CSV", type=output_file(".csv"),
                    help="the table (default: the plot's name with .csv, when -o is given)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the repetitions (default 0)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+    p.add_argument("--seed", type=seed, default=0, help="seed of the repetitions (default 0)")
+    p.add_argument("--workers", type=whole(1, MAX_WORKERS), default=os.cpu_count() or 1,
                    help="processes (default: the number of CPUs); results do not depend on it")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", type=setting,
                    dest="settings", help="another task setting, kept fixed; repeatable")
     p.add_argument("--backend", help="which implementation of each skill to run")
-    p.add_argument("--step-limit", type=int,
+    p.add_argument("--step-limit", type=whole(1, MAX_STEP_LIMIT),
                    help="steps after which a run ends in timeout (default: the task's)")
     p.set_defaults(func=cmd_robustness)
 
 
+def _sweep_arg(text: str) -> list[float]:
+    try:
+        values = parse_values(text)
+    except RobustnessError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return values
+
+
+def _setting_name(text: str) -> str:
+    if not text.isidentifier():
+        raise argparse.ArgumentTypeError(f"must be a setting name like p_fail, got {text!r}")
+    return text
+
+
 def cmd_robustness(args: argparse.Namespace) -> int:
-    values = parse_values(args.values)
+    values = args.values if isinstance(args.values, list) else parse_values(args.values)
     settings = parse_settings(args.settings)
+    if args.backend:
+        from .cli import check_backend
+        from .task import load_task
+
+        check_backend(load_task(args.task, **settings).registry, args.backend)
     if args.setting in settings:
         raise RobustnessError(
             f"--set {args.setting}=... conflicts with the sweep of {args.setting}; drop it"

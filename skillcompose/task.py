@@ -19,7 +19,7 @@ from .blackboard import Blackboard
 from .errors import SkillcomposeError
 from .executor import CompiledFSA, RunResult, compile_fsa, trial_rngs
 from .fsa import DEFAULT_TERMINALS, ERROR, FSA
-from .registry import Registry, import_target
+from .registry import Registry, describe_exception, import_target
 
 __all__ = ["Task", "TaskError", "TaskRef", "load_task"]
 
@@ -146,15 +146,25 @@ def load_task(target: str, **settings: Any) -> Task:
         )
     try:
         task = make(**settings)
+    except SkillcomposeError as exc:
+        raise TaskError(f"task {target}: make_task({_args(settings)}): {exc}") from exc
     except TypeError as exc:
         raise TaskError(
             f"task {target}: make_task() rejected settings {dict(settings)}: {exc}"
+        ) from exc
+    except Exception as exc:  # the task's own code failed: say where, not a traceback
+        raise TaskError(
+            f"task {target}: make_task({_args(settings)}) raised {describe_exception(exc)}"
         ) from exc
     if not isinstance(task, Task):
         raise TaskError(f"task {target}: make_task() returned {type(task).__name__}, not Task")
     from dataclasses import replace
 
     return replace(task, ref=TaskRef(target, dict(settings)))
+
+
+def _args(settings: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k}={v!r}" for k, v in settings.items())
 
 
 def parse_settings(items: Sequence[str]) -> dict[str, Any]:

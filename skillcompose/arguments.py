@@ -1,0 +1,172 @@
+"""Command-line argument types: each argument is checked where argparse parses it.
+
+Every function here is an argparse ``type=``: it returns the converted value or raises
+:class:`argparse.ArgumentTypeError`, which argparse prints as one line naming the argument,
+what is allowed and what was given, and exits with status 2::
+
+    p.add_argument("--trials", type=whole(1, MAX_TRIALS), default=1)
+    p.add_argument("-o", "--output", type=output_file(".png", ".svg"))
+
+Checks that need more than the argument (a backend no loaded skill has) raise
+:class:`UsageError` later, which the command line also reports with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+from .errors import SkillcomposeError
+
+__all__ = [
+    "MAX_SEED",
+    "MAX_TRIALS",
+    "MAX_WORKERS",
+    "UsageError",
+    "existing_dir",
+    "module_or_file",
+    "number",
+    "output_dir",
+    "output_file",
+    "seed",
+    "setting",
+    "whole",
+]
+
+MAX_SEED = 2**63 - 1
+MAX_TRIALS = 1_000_000
+"""The most runs one command makes of an FSA per point (``--trials``, ``--reps``)."""
+MAX_WORKERS = 1024
+
+_WHOLE = re.compile(r"[-+]?[0-9]{1,30}")
+_REAL = re.compile(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]{1,4})?")
+_NAME = r"[A-Za-z_][A-Za-z0-9_]*"
+_DOTTED = re.compile(rf"{_NAME}(?:\.{_NAME})*")
+
+
+class UsageError(SkillcomposeError, ValueError):
+    """A command-line argument is not allowed given what it refers to."""
+
+
+def _shown(text: str) -> str:
+    return repr(text if len(text) <= 40 else text[:37] + "...")
+
+
+def whole(low: int, high: int) -> Callable[[str], int]:
+    """A whole number in ``[low, high]``."""
+
+    def parse(text: str) -> int:
+        t = text.strip()
+        if not _WHOLE.fullmatch(t) or not low <= int(t) <= high:
+            raise argparse.ArgumentTypeError(
+                f"must be a whole number from {low} to {high}, got {_shown(text)}"
+            )
+        return int(t)
+
+    parse.__name__ = "whole number"
+    return parse
+
+
+def number(low: float, high: float) -> Callable[[str], float]:
+    """A finite number in ``[low, high]`` (no nan, no inf)."""
+
+    def parse(text: str) -> float:
+        t = text.strip()
+        value = float(t) if _REAL.fullmatch(t) else math.nan
+        if not (math.isfinite(value) and low <= value <= high):
+            raise argparse.ArgumentTypeError(
+                f"must be a finite number from {low:g} to {high:g}, got {_shown(text)}"
+            )
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+seed = whole(0, MAX_SEED)
+"""A run seed: a whole number from 0 to 2**63 - 1."""
+
+
+def module_or_file(text: str) -> str:
+    """A Python module: a dotted name (``examples.pour_water``) or an existing ``.py`` file;
+    an FSA file (``.yaml``) is accepted too, for ``--skills``."""
+    if _DOTTED.fullmatch(text):
+        return text
+    if text.endswith((".py", ".yaml", ".yml")) or "/" in text or os.sep in text:
+        if not Path(text).is_file():
+            raise argparse.ArgumentTypeError(f"no file {_shown(text)}")
+        return text
+    raise argparse.ArgumentTypeError(
+        f"{_shown(text)} is neither a module name (like examples.pour_water) nor a .py file"
+    )
+
+
+def setting(text: str) -> str:
+    """A task setting ``NAME=VALUE`` (the value is converted by the task's loader)."""
+    name, eq, _ = text.partition("=")
+    if not eq or not re.fullmatch(_NAME, name.strip()):
+        raise argparse.ArgumentTypeError(
+            f"must look like NAME=VALUE (e.g. p_fail=0.3), got {_shown(text)}"
+        )
+    return text
+
+
+def _writable_place(path: Path) -> str | None:
+    """Why files cannot be created at ``path`` (a directory to be), or None."""
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        return f"{probe} is a file, not a directory"
+    if not os.access(probe, os.W_OK | os.X_OK):
+        return f"cannot write in {probe} (permission denied)"
+    return None
+
+
+def output_file(*suffixes: str) -> Callable[[str], str]:
+    """A file to write, with one of ``suffixes`` (any when none are given), in a place
+    where it can be created."""
+
+    def parse(text: str) -> str:
+        path = Path(text)
+        if not text or text.endswith(("/", os.sep)) or path.is_dir():
+            raise argparse.ArgumentTypeError(f"{_shown(text)} is a directory; give a file name")
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise argparse.ArgumentTypeError(
+                f"{_shown(text)}: the file name must end in {' '.join(suffixes)}"
+            )
+        if path.exists() and not os.access(path, os.W_OK):
+            raise argparse.ArgumentTypeError(f"cannot write {text} (permission denied)")
+        why = _writable_place(path.parent if str(path.parent) else Path("."))
+        if why is not None:
+            raise argparse.ArgumentTypeError(f"cannot write {text}: {why}")
+        return text
+
+    parse.__name__ = "output file"
+    return parse
+
+
+def output_dir(text: str) -> str:
+    """A directory to write into: existing, or one that can be created."""
+    path = Path(text)
+    if not text:
+        raise argparse.ArgumentTypeError("give a directory name")
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{_shown(text)} is a file; give a directory")
+    why = _writable_place(path)
+    if why is not None:
+        raise argparse.ArgumentTypeError(f"cannot write in {text}: {why}")
+    return text
+
+
+def existing_dir(text: str) -> str:
+    """A directory that exists."""
+    if not Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"no directory {_shown(text)}")
+    return text
