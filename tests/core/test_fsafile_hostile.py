@@ -29,13 +29,19 @@ VALID = textwrap.dedent(
 )
 
 
+SLACK = 6.0
+"""Time bounds are this many times what a quiet 2-core machine needs: they catch what the
+causes did (10 s of scanning, a minute of parsing twice), not a busy neighbour. Speed itself
+is measured by benchmarks, not by tests."""
+
+
 def _refused(text: str, seconds: float = 2.0) -> FSAFileError:
     """The error a text is refused with; every problem located; answered in time."""
     t0 = time.perf_counter()
     with pytest.raises(FSAFileError) as info:
         loads_fsa(text, "bad.yaml")
     elapsed = time.perf_counter() - t0
-    assert elapsed < seconds, f"took {elapsed:.2f} s"
+    assert elapsed < seconds * SLACK, f"took {elapsed:.2f} s"
     err = info.value
     assert err.problems
     for p in err.problems:
@@ -189,7 +195,7 @@ def test_a_file_of_megabytes_is_answered_at_once(tmp_path: Path, megabytes: floa
     t0 = time.perf_counter()
     with pytest.raises(FSAFileError) as info:
         load_fsa(path)
-    assert time.perf_counter() - t0 < 0.5
+    assert time.perf_counter() - t0 < 0.5 * SLACK
     assert "at most" in str(info.value) and f"{path}:" in str(info.value)
     t0 = time.perf_counter()
     _refused(text, seconds=0.5)
@@ -206,7 +212,7 @@ def test_too_many_values_is_one_located_error_fast(item: str, values: int) -> No
     few = VALID + "meta: {a: [" + ", ".join([item] * (n // 2)) + "]}\n"
     t0 = time.perf_counter()
     loads_fsa(few)
-    assert time.perf_counter() - t0 < 1.5
+    assert time.perf_counter() - t0 < 1.5 * SLACK
 
 
 def test_too_many_states_is_one_located_error() -> None:
@@ -295,4 +301,4 @@ def test_vector_parameters_of_many_states_fit_the_bounds() -> None:
     assert len(text.encode()) > 180_000
     t0 = time.perf_counter()
     assert len(loads_fsa(text).states) == 70
-    assert time.perf_counter() - t0 < 1.5
+    assert time.perf_counter() - t0 < 1.5 * SLACK
