@@ -184,7 +184,7 @@ def test_a_file_at_the_state_limit_loads_fast(tmp_path: Path) -> None:
     fsa = load_fsa(path)
     elapsed = time.perf_counter() - t0
     assert len(fsa.states) == MAX_STATES
-    assert elapsed < 1.5, f"{elapsed:.2f} s"  # about 0.3 s
+    assert elapsed < 1.5 * SLACK, f"{elapsed:.2f} s"  # about 0.3 s
 
 
 @pytest.mark.parametrize("megabytes", [0.6, 1.4, 5.0])

@@ -37,7 +37,7 @@ SEEDS.append(
 )
 
 EXAMPLES = int(os.environ.get("SKILLCOMPOSE_FUZZ_EXAMPLES", "60"))
-SECONDS = 2.0  # per input; a file at the size limit takes about 0.3 s
+SECONDS = 12.0  # per input; a file at the size limit takes about 0.3 s on a quiet machine
 FUZZ = settings(max_examples=EXAMPLES, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
