@@ -89,8 +89,14 @@ from skills.kinematic_world import (
     top_down_grasp_world,
     transform_robot_to_world,
 )
-from skills.move_to_push import SAFETY_M, base_hits_table, base_in_room, network_goal
-from skills.network import WEIGHT_RANGE, Topology, weight_count
+from skills.move_to_push import (
+    SAFETY_M,
+    base_hits_table,
+    base_in_room,
+    network_goal,
+    weights_parameter,
+)
+from skills.network import Topology
 from skills.pour_water import (
     APPROACH_OFFSET_M,
     APPROACH_TOLERANCE_M,
@@ -525,12 +531,8 @@ def make_move_base(topology: Topology) -> Skill:
     """The kinematic twin of the network ``MoveBase`` of :mod:`skills.move_to_push`: the
     same network and the same mapping of its outputs to a base pose, torso height and arm,
     then the motion of :func:`move_base_pose` on the PR2 model."""
-    n = weight_count(topology)
-    weights_type: Any = Annotated[
-        tuple[float, ...],
-        Param(*WEIGHT_RANGE, size=n, doc=f"the {topology} network's {n} weights"),
-    ]
-    zeros = (0.0,) * n
+    weights_type: Any  # a run-time Annotated[...]: its length depends on the topology
+    weights_type, zeros = weights_parameter(topology)
 
     def move_base(
         bb: Blackboard, rng: np.random.Generator, *, weights: weights_type = zeros

@@ -54,6 +54,7 @@ __all__ = [
     "object_in_robot_frame",
     "recognise_object",
     "register",
+    "weights_parameter",
 ]
 
 SAFETY_M = 0.05
@@ -178,16 +179,23 @@ def classifier_label(
     return _classifier().predict_one(np.array([x, y, z, math.atan2(y, x), torso_m]))
 
 
-def make_skills(topology: Topology) -> tuple[Skill, ...]:
-    """RecogniseObject, MoveBase (a ``topology`` network) and Push on the ``sim`` backend."""
+def weights_parameter(topology: Topology) -> tuple[Any, tuple[float, ...]]:
+    """MoveBase's ``weights`` declaration for a ``topology`` network: its annotation and
+    default. Both backends' MoveBase use this one declaration, so they cannot differ."""
     if topology not in TOPOLOGIES:
         raise ValueError(f"unknown network topology {topology!r}; use one of {TOPOLOGIES}")
     n = weight_count(topology)
-    weights_type: Any = Annotated[
+    annotation = Annotated[
         tuple[float, ...],
         Param(*WEIGHT_RANGE, size=n, doc=f"the {topology} network's {n} weights"),
     ]
-    zeros = (0.0,) * n
+    return annotation, (0.0,) * n
+
+
+def make_skills(topology: Topology) -> tuple[Skill, ...]:
+    """RecogniseObject, MoveBase (a ``topology`` network) and Push on the ``sim`` backend."""
+    weights_type: Any  # a run-time Annotated[...]: its length depends on the topology
+    weights_type, zeros = weights_parameter(topology)
 
     def move_base(
         bb: Blackboard, rng: np.random.Generator, *, weights: weights_type = zeros
