@@ -108,6 +108,7 @@ from skills.pour_water import (
     Roll,
     Yaw,
 )
+from skills.stacking import StackDX, StackDY, StackDZ, Which
 
 __all__ = [
     "BACKEND",
@@ -589,7 +590,7 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
     return "success"
 
 
-_WHICH = Annotated[float, Param(0.0, 1.0, doc="> 0.5: the first object, else the second")]
+_WHICH = Which
 
 
 @skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped"),
@@ -627,9 +628,9 @@ def move_gripper_to_stack(
     rng: np.random.Generator,
     *,
     which: _WHICH = 1.0,
-    dx: Annotated[float, Param(-0.2, 0.2, unit="m", doc="x offset from the object")] = 0.0,
-    dy: Annotated[float, Param(-0.2, 0.2, unit="m", doc="y offset from the object")] = 0.0,
-    dz: Annotated[float, Param(0.0, 0.3, unit="m", doc="z offset from the object")] = 0.1,
+    dx: StackDX = 0.0,
+    dy: StackDY = 0.0,
+    dz: StackDZ = 0.1,
 ) -> Literal["success", "failure"]:
     """Move the gripper, from above, to the chosen object's centre + (dx, dy, dz) in world.
 

@@ -102,7 +102,12 @@ _TOUCH_M = 0.002  # boxes may touch (stacked) within this much overlap
 _ARMS: tuple[Arm, Arm] = ("left", "right")
 _LABEL_ARMS: dict[int, Arm] = {code: arm for arm, code in ARM_CODES.items()}  # type: ignore[misc]
 
-_WHICH = Annotated[float, Param(0.0, 1.0, doc="> 0.5: the first object, else the second")]
+Which = Annotated[float, Param(0.0, 1.0, doc="> 0.5: the first object, else the second")]
+StackDX = Annotated[float, Param(-0.2, 0.2, unit="m", doc="x offset from the object")]
+StackDY = Annotated[float, Param(-0.2, 0.2, unit="m", doc="y offset from the object")]
+StackDZ = Annotated[float, Param(0.0, 0.3, unit="m", doc="z offset from the object")]
+"""GraspParam's and MoveGripperToStack's parameters, declared once for both backends."""
+_WHICH = Which
 _WORLD = ("object_positions_world", "object_half_extents_m", "table_world")
 _ROBOT = ("base_pose_world", "torso_height_m", "arm_in_use", *HELD_KEYS.values())
 
@@ -220,9 +225,9 @@ def move_gripper_to_stack(
     rng: np.random.Generator,
     *,
     which: _WHICH = 1.0,
-    dx: Annotated[float, Param(-0.2, 0.2, unit="m", doc="x offset from the object")] = 0.0,
-    dy: Annotated[float, Param(-0.2, 0.2, unit="m", doc="y offset from the object")] = 0.0,
-    dz: Annotated[float, Param(0.0, 0.3, unit="m", doc="z offset from the object")] = 0.1,
+    dx: StackDX = 0.0,
+    dy: StackDY = 0.0,
+    dz: StackDZ = 0.1,
 ) -> Literal["success", "failure"]:
     """Move the gripper to the chosen object's centre + (dx, dy, dz) (module docstring)."""
     name = _which_name(bb, which)
