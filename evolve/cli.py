@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from skillcompose.errors import SkillcomposeError
-from skillcompose.task import load_task, parse_settings
+from skillcompose.task import Task, load_task, parse_settings
 
 from .algorithm import evolve
 from .config import PRESETS, EvolutionConfig
@@ -122,6 +122,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="replace a worker whose memory grew by more than MB (default 1024; "
                    "0: never)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _hold_hint(cfg: EvolutionConfig, task: Task) -> str:
+    """What would make evolved FSAs hold on fresh episodes, among what this run did not use."""
+    hints = []
+    if (cfg.trials or task.trials) < 10:
+        hints.append("more trials per evaluation (--trials)")
+    if not cfg.confirm_trials:
+        hints.append("--confirm N")
+    elif cfg.confirm_trials < 100:
+        hints.append(f"a larger --confirm than {cfg.confirm_trials}")
+    if not cfg.common_random_numbers:
+        hints.append("--crn")
+    return ", ".join(hints) + " evolve FSAs that hold" if hints else \
+        "a stricter task target or more confirmation trials evolve FSAs that hold"
 
 
 def _config(args: argparse.Namespace) -> EvolutionConfig:
@@ -295,8 +310,7 @@ def handle(args: argparse.Namespace) -> int:
             print(
                 f"warning: that differs from the evolved fitness {result.best_fitness:g}: "
                 "evolution measured it on its own few episodes; trust the fresh ones "
-                "(more trials per evaluation, --preset robust or --confirm N evolve FSAs "
-                "that hold)", file=sys.stderr,
+                f"({_hold_hint(cfg, task)})", file=sys.stderr,
             )
     faults = result.faults
     if faults.total:

@@ -347,3 +347,17 @@ def test_faults_on_ray_equal_the_serial_run() -> None:
     assert sum(r.faults["raised"] for r in serial.history) > 0
     assert _history(serial) == _history(on_ray)
     assert serial.faults.first_error == on_ray.faults.first_error
+
+
+def test_the_fresh_check_warning_suggests_only_what_the_run_did_not_use() -> None:
+    from evolve import PRESETS, EvolutionConfig
+    from evolve.cli import _hold_hint
+
+    task = load_task("examples.pour_water")
+    paper = _hold_hint(EvolutionConfig(), task)
+    assert "--confirm N" in paper and "--crn" in paper and "--trials" in paper
+    robust = _hold_hint(EvolutionConfig(**PRESETS["robust"]), task)
+    assert "--crn" not in robust and "--confirm N" not in robust
+    assert "a larger --confirm than 20" in robust and "--trials" in robust
+    strict = _hold_hint(EvolutionConfig(**{**PRESETS["push"], "confirm_trials": 200}), task)
+    assert strict.startswith("a stricter task target")
