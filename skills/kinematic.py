@@ -89,13 +89,7 @@ from skills.kinematic_world import (
     top_down_grasp_world,
     transform_robot_to_world,
 )
-from skills.move_to_push import (
-    SAFETY_M,
-    base_hits_table,
-    base_in_room,
-    network_goal,
-    weights_parameter,
-)
+from skills.move_to_push import SAFETY_M, base_in_room, network_goal, weights_parameter
 from skills.network import Topology
 from skills.pour_water import (
     APPROACH_OFFSET_M,
@@ -539,13 +533,13 @@ def make_move_base(topology: Topology) -> Skill:
         bb: Blackboard, rng: np.random.Generator, *, weights: weights_type = zeros
     ) -> Literal["success", "failure"]:
         goal = network_goal(bb, rng, topology, weights)
-        if goal is None:
+        if goal == "no_object":
             return fail(bb, "no_object", "MoveBase: no object_location_world; run "
                         "RecogniseObject first")
+        if goal == "too_close":
+            return fail(bb, "collision", "MoveBase: the network's base pose comes closer "
+                        f"than {SAFETY_M} m to the table")
         pose, torso, arm = goal
-        if base_hits_table(pose, bb.get("table_world"), SAFETY_M):
-            return fail(bb, "collision", f"MoveBase: the base at {fmt(pose)} (m, m, rad) comes "
-                        f"closer than {SAFETY_M} m to the table")
         return _drive_base(bb, "MoveBase", pose, torso, arm)
 
     move_base.__doc__ = make_move_base.__doc__

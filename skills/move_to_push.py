@@ -144,17 +144,22 @@ def base_in_room(base_pose_world: Sequence[float], room_half_m: float) -> bool:
 
 def network_goal(
     bb: Blackboard, rng: np.random.Generator, topology: Topology, weights: Sequence[float]
-) -> BaseGoal | None:
-    """The base goal MoveBase's network gives on this blackboard; None without a recognised
-    object. Shared by both backends' MoveBase."""
+) -> BaseGoal | Literal["no_object", "too_close"]:
+    """The base goal MoveBase's network gives on this blackboard, or why MoveBase refuses
+    to go: ``no_object`` without a recognised object, ``too_close`` when the base would come
+    closer than :data:`SAFETY_M` to the table. Both backends' MoveBase start here, so the
+    network, its outputs' meaning and the safety distance are one rule."""
     location = bb.get("object_location_world")
     if location is None:
-        return None
+        return "no_object"
     base = bb.get("base_pose_world") or (0.0, 0.0, 0.0)
     torso = float(bb.get("torso_height_m", 0.0))
     net = make_network(topology, weights)
     outputs = net(network_inputs(object_in_robot_frame(base, location), torso), rng)
-    return base_goal(outputs, base)
+    goal = base_goal(outputs, base)
+    if base_hits_table(goal[0], bb.get("table_world"), SAFETY_M):
+        return "too_close"
+    return goal
 
 
 @skill(name="RecogniseObject", reads=("object_position_world",),
@@ -201,11 +206,10 @@ def make_skills(topology: Topology) -> tuple[Skill, ...]:
         bb: Blackboard, rng: np.random.Generator, *, weights: weights_type = zeros
     ) -> Literal["success", "failure"]:
         goal = network_goal(bb, rng, topology, weights)
-        if goal is None:
+        if isinstance(goal, str):
             return "failure"
         pose, torso, arm = goal
-        if base_hits_table(pose, bb.get("table_world"), SAFETY_M) or \
-                not base_in_room(pose, float(bb["room_half_m"])):
+        if not base_in_room(pose, float(bb["room_half_m"])):
             return "failure"
         bb["base_pose_world"] = pose
         bb["torso_height_m"] = torso
