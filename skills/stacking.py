@@ -65,6 +65,7 @@ import numpy as np
 
 from robots.collision import Box
 from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
+from skillcompose.fsa import FSA, State
 from skillcompose.nested import FSASkill, fsa_skill
 from skillcompose.skill import SkillFn, SkillSpec
 from skills import move_to_push as skills_push
@@ -321,20 +322,38 @@ def recognise_target(bb: Blackboard, rng: np.random.Generator) -> Literal["succe
     return "success"
 
 
-def _check_arm(bb: Blackboard) -> Arm | None:
+def reach_goal(bb: Blackboard) -> tuple[str, Vec3] | None:
+    """Where MoveToReach must bring the gripper into reach: empty-handed, the centre of the
+    object of :func:`reach_target`; with an object held, the point above that object where the
+    held object's centre stands when it stands on it. None without two objects."""
+    target = reach_target(bb)
+    if target is None:
+        return None
+    name, position = target
     holding = held(bb)
-    return holding[0] if holding is not None else bb.get("arm_in_use")
+    if holding is None:
+        return target
+    boxes = object_boxes(bb)
+    rise = boxes[name].half_extents_m[2] + boxes[holding[1]].half_extents_m[2]
+    return name, (position[0], position[1], position[2] + rise)
 
 
-@skill(name="Push", reads=("object_positions_world", *_ROBOT), backend="sim")
+def reach_arms(bb: Blackboard) -> tuple[Arm, ...]:
+    """The arms that may do the reaching: the one holding an object, else either."""
+    holding = held(bb)
+    return (holding[0],) if holding is not None else _ARMS
+
+
+@skill(name="Push", reads=("object_positions_world", "object_half_extents_m", *_ROBOT),
+       backend="sim")
 def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """MoveToReach's terminating Push, which moves nothing: ``success`` when the classifier
-    says the arm holding an object (else the arm MoveBase chose) reaches the target."""
-    arm = _check_arm(bb)
-    target = reach_target(bb)
-    if arm not in ARM_CODES or target is None:
+    says an arm of :func:`reach_arms` reaches the point of :func:`reach_goal`."""
+    goal = reach_goal(bb)
+    if goal is None:
         return "failure"
-    return "success" if _label(bb, target[1]) == ARM_CODES[arm] else "failure"
+    label = _label(bb, goal[1])
+    return "success" if label and _LABEL_ARMS[label] in reach_arms(bb) else "failure"
 
 
 def reach_registry(topology: Topology = "layered", *, kinematic: bool = True) -> Registry:
@@ -360,7 +379,7 @@ class MoveToReach(Skill):
     """A nested FSA (:class:`skillcompose.nested.FSASkill`) behind a random failure with the
     blackboard's ``p_fail``; a held object moves with the base (module docstring)."""
 
-    __slots__ = ("nested",)
+    __slots__ = ("guard", "nested")
 
     def __init__(self, nested: FSASkill) -> None:
         spec = nested.spec
@@ -374,13 +393,19 @@ class MoveToReach(Skill):
             doc=f"MoveToReach: {spec.doc}, failing at random with p_fail",
         ), None, backend="default")
         self.nested = nested
+        self.guard = fsa_skill(FSA({"InReach": State("Push", transitions={
+            "success": "success", "failure": "failure"})}, start="InReach",
+            name="InReach"), nested.registry, name="InReach")
 
     def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
         run = self.nested.bind(None, backend)
+        in_reach = self.guard.bind(None, backend)
 
         def move_to_reach(bb: Blackboard, rng: np.random.Generator) -> str:
             if _random_failure(bb, rng):
                 return "failure"
+            if in_reach(bb, rng) == "success":
+                return "success"  # already in reach: nothing to move
             holding = held(bb)
             before = (bb.get("base_pose_world") or (0.0, 0.0, 0.0),
                       float(bb.get("torso_height_m", 0.0)))
