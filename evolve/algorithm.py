@@ -407,16 +407,22 @@ class _Run:
 
     def confirm(self) -> bool:
         """Re-run the best genome on ``confirm_trials`` fresh worlds; it stays the best (and
-        the task solved) only if it reaches the target there too, else its fitness becomes
-        that measured mean and evolution goes on."""
+        the task solved) only if it reaches the target there too (its mean, or, with
+        ``confirm_rate``, that share of the episodes), else its fitness becomes that measured
+        mean and evolution goes on."""
         assert self.best is not None
         g, _, gen = self.best
         trials = 1 if self.task.deterministic else self.cfg.confirm_trials
         job = Job.of(g, self.seed, (_CONFIRM, self.generation), trials)
+        scores: list[float] = []
         with Guard(self.cfg.eval_time_limit) as guard:
-            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False)
+            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False, scores)
         self.evaluations += trials
-        if self.task.solved(mean):
+        rate = self.cfg.confirm_rate
+        if rate > 0.0 and not self.task.deterministic:
+            if sum(map(self.task.solved, scores)) >= rate * trials:
+                return True
+        elif self.task.solved(mean):
             return True
         self.best = (g, mean, gen)
         return False
