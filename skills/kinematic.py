@@ -589,20 +589,26 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
 _WHICH = Which
 
 
-@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped"),
-       writes=(*_MOVE_WRITES, "objects_grasped"), backend=BACKEND)
+@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped", "object_locations_world"),
+       writes=(*_MOVE_WRITES, "objects_grasped", "grasp_target"), backend=BACKEND)
 def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
-    """Grasp the first (``which`` > 0.5) or second stacking object from above, by IK with
-    the arm on its side (then the other). ``failure``: ``no_object``, ``already_holding``
-    or the IK reason. Appends the object to ``objects_grasped``."""
+    """Grasp the first (``which`` > 0.5) or second stacking object, from the side else from
+    above (:data:`skills.kinematic_world.GRASP_KINDS`), by IK with the arm on its side (then
+    the other). ``failure``: ``no_object``, ``not_recognised``, ``already_holding`` or the IK
+    reason. Writes the object it tries to ``grasp_target`` and,
+    grasped, appends it to ``objects_grasped``."""
     name = stack_object_name(bb, which)
     if name is None:
         return fail(bb, "no_object", "GraspParam: object_positions_world needs two objects")
+    if bb.get("object_locations_world") is None:
+        return fail(bb, "not_recognised", "GraspParam: the objects were not recognised; run "
+                    "RecogniseObject first")
     state = read_state(bb)
     if any(state.held[a] is not None for a in ARMS):
         return fail(bb, "already_holding", "GraspParam: a gripper already holds an object")
+    bb["grasp_target"] = name
     position = object_position(bb, name)
     assert position is not None  # the name came from the same mapping
     kind, answer = reach_grasp(state, arms_for(state, position), position, scene_world(bb),

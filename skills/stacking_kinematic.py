@@ -30,7 +30,7 @@ from skills.stacking import held, reach_arms, reach_goal
 __all__ = ["reach_check"]
 
 
-@skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS),
+@skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS, "grasp_target"),
        writes=(REASON_KEY, DETAIL_KEY), backend="kinematic")
 def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """MoveToReach's Push on the PR2 model, moving nothing: ``success`` when IK finds a grasp

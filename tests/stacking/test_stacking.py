@@ -322,6 +322,14 @@ def test_reach_goal_holding_is_where_the_held_object_would_stand() -> None:
     assert st.reach_goal(world(object_positions_world={"box": FIRST})) is None
 
 
+def test_move_to_reach_goes_for_the_object_grasp_param_last_tried() -> None:
+    bb = recognised(p_fail=1.0)
+    assert st.reach_target(bb) == ("box", FIRST)  # before any grasp: the first
+    assert st.grasp_param(bb, 0, which=0.0) == "failure"  # a random failure
+    assert bb["grasp_target"] == "bottle"
+    assert st.reach_target(bb) == ("bottle", SECOND)
+
+
 # -- evolution ------------------------------------------------------------------------------
 @pytest.mark.slow
 def test_short_evolution_improves_fitness() -> None:
