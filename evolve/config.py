@@ -55,7 +55,9 @@ class EvolutionConfig:
       too (otherwise its fitness becomes that mean and evolution goes on). Guards against a
       lucky solve on few trials. ``confirm_rate`` > 0 asks instead that at least this share
       of those episodes reach the target one by one (for tasks whose mean mixes rare large
-      scores with small ones, such as stacking's 50 for a run that never grasped).
+      scores with small ones, such as stacking's 50 for a run that never grasped); its
+      confirmations all use the same worlds, drawn once per run, so that an FSA confirmed
+      again generation after generation cannot pass by a lucky draw at last.
 
     Faults and limits (see docs/evolve.md, "Faults and limits"):
 
