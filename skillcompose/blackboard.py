@@ -173,7 +173,7 @@ class Blackboard:
     def take_log(self) -> dict[str, tuple[Any, Any]]:
         """The changes since :meth:`start_log` or the last call: ``{key: (old, new)}``."""
         log = self._log
-        if log is None:
+        if not log:
             return {}
         self._log = []
         out: dict[str, tuple[Any, Any]] = {}

@@ -29,13 +29,13 @@ import py_trees
 from py_trees.common import Access as TreeAccess
 from py_trees.common import Status
 
+from .activation import RUNNING, Starter
 from .blackboard import DELETED, Blackboard
 from .errors import SkillcomposeError, SkillProtocolError
-from .executor import CompiledFSA, RunResult, compile_fsa
+from .executor import CompiledFSA, FSARun, RunResult, compile_fsa
 from .fsa import FSA, RESERVED_OUTCOMES, State
 from .registry import Registry
 from .skill import Skill, SkillSpec
-from .ticking import RUNNING, FSARun, Starter
 
 __all__ = [
     "BlackboardBridge",
@@ -206,7 +206,7 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
         )
         reads: set[str] = set()
         writes: set[str] = set()
-        for impl, _ in compiled._impls:
+        for impl, _ in compiled.impls:
             reads |= impl.spec.reads
             writes |= impl.spec.writes
         ident = compiled.fsa.name or label.replace(" ", "_")

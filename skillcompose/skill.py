@@ -15,8 +15,9 @@ A *long-running* skill (a grasp, a base move) is declared the same way, as eithe
   that yields ``"running"`` (or nothing) until it returns its outcome; cancelling it closes
   the generator, so its ``finally:`` blocks are its cancel hook.
 
-The tick-wise executor (:mod:`skillcompose.ticking`) ticks them; run-to-completion mode ticks
-them in a loop until they finish, so one FSA runs in both modes.
+The engine (:mod:`skillcompose.executor`) asks each skill how it starts (:meth:`Skill.starter`,
+:meth:`Skill.bind`, :meth:`Skill.cancel_hook`); subclasses (nested FSAs, py_trees subtrees)
+override these, so the engine never asks what kind a skill is.
 """
 
 from __future__ import annotations
@@ -33,10 +34,10 @@ from typing import Any, Literal, get_args, get_origin
 
 import numpy as np
 
+from .activation import RUNNING, Starter, driven, start_generator, start_instance
 from .blackboard import Access, Blackboard
-from .errors import ParamError, SkillDefinitionError
+from .errors import ParamError, SkillDefinitionError, UndeclaredOutcomeError
 from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
-from .ticking import RUNNING, Starter, driven, start_generator, start_instance
 
 __all__ = ["LONG_RUNNING_KINDS", "Skill", "SkillFn", "SkillSpec", "skill"]
 
@@ -151,6 +152,15 @@ class Skill:
             return functools.partial(start_generator, self.impl, self.name)
         return None
 
+    def cancel_hook(self, backend: str | None = None) -> Callable[[Blackboard], Any] | None:
+        """``cancel(bb)`` of an instant class skill's instance, called when a state's time
+        limit abandons it; None for skills without one (long-running skills cancel through
+        their activation)."""
+        if not self.is_class or self.long_running:
+            return None
+        hook = getattr(self.bind(None, backend), "cancel", None)
+        return hook if callable(hook) else None
+
     def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
         """The callable the executor runs: the function, or the class's one instance.
 
@@ -185,8 +195,6 @@ class Skill:
         finally:
             bb._client = prev
         if out not in self.spec.outcomes:
-            from .errors import UndeclaredOutcomeError
-
             raise UndeclaredOutcomeError(
                 f"skill {self.name} returned {out!r}, which is not one of its declared "
                 f"outcomes {list(self.spec.outcomes)}"

@@ -15,6 +15,7 @@ from skillcompose import (
     compile_fsa,
     run_fsa,
 )
+from skillcompose.executor import trial_rngs
 
 POUR = FSA(
     {
@@ -42,7 +43,7 @@ def test_same_seed_same_outcome_sequence(registry: Registry) -> None:
     c = compile_fsa(POUR.with_params("Move_2", p_fail=0.6).replace(step_limit=5), registry)
 
     def sequence(seed: int) -> list[tuple[str, int]]:
-        return [(r.outcome, r.steps) for r in c.run_many(None, seed, 200)]
+        return [(r.outcome, r.steps) for r in (c.run(None, rng) for rng in trial_rngs(seed, 200))]
 
     a, b, other = sequence(7), sequence(7), sequence(8)
     assert a == b
