@@ -14,11 +14,11 @@ compiling and loading do for you.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import FSAValidationError, ParamError, Problem, UnknownSkillError
@@ -343,16 +343,7 @@ class FSA:
 
 
 def _fix_target(target: str, states: list[str], terminals: tuple[str, ...]) -> str:
-    import difflib
-
     close = difflib.get_close_matches(str(target), states + list(terminals), n=1)
     if close:
         return f"did you mean {close[0]!r}?"
     return f"use a state name or one of {list(terminals)}"
-
-
-def load(path: str | Path) -> FSA:
-    """Shorthand for :func:`skillcompose.fsafile.load_fsa`."""
-    from .fsafile import load_fsa
-
-    return load_fsa(path)

@@ -7,7 +7,6 @@ registry it was registered in, so swapping a backend swaps it inside the nested 
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -94,17 +93,13 @@ class _NestedActivation:
 
 
 def fsa_skill(
-    fsa: FSA | str | Path,
+    fsa: FSA,
     registry: Registry,
     *,
     name: str | None = None,
     on_timeout: str | None = None,
 ) -> FSASkill:
     """Make a skill of ``fsa`` whose states' skills come from ``registry``."""
-    if not isinstance(fsa, FSA):
-        from .fsafile import load_fsa
-
-        fsa = load_fsa(fsa)
     skill_name = name or fsa.name
     if not skill_name or not skill_name.isidentifier():
         raise RegistryError(

@@ -13,6 +13,7 @@ entry-point group.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.util
 import os
@@ -22,13 +23,12 @@ from collections.abc import Iterable, Iterator
 from importlib import metadata
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING
 
 from .errors import RegistryError, UnknownSkillError
+from .fsa import FSA
+from .fsafile import load_fsa
+from .nested import fsa_skill
 from .skill import Skill, SkillSpec
-
-if TYPE_CHECKING:
-    from .fsa import FSA
 
 __all__ = ["DEFAULT_BACKEND", "ENTRY_POINT_GROUP", "Registry"]
 
@@ -81,9 +81,9 @@ class Registry:
         and random generator. ``on_timeout`` names the outcome its timeout maps to (default:
         ``"failure"`` when that is a terminal, else a ``timeout`` outcome is added).
         """
-        from .nested import fsa_skill
-
-        s = fsa_skill(fsa, self, name=name, on_timeout=on_timeout)
+        s = fsa_skill(
+            fsa if isinstance(fsa, FSA) else load_fsa(fsa), self, name=name, on_timeout=on_timeout
+        )
         return self.add(s)
 
     def load_module(self, target: str | ModuleType) -> list[Skill]:
@@ -184,8 +184,6 @@ class Registry:
             raise UnknownSkillError(self.unknown_message(name)) from None
 
     def unknown_message(self, name: str) -> str:
-        import difflib
-
         close = difflib.get_close_matches(name, list(self._impls), n=3)
         hint = f"; did you mean {' or '.join(close)}?" if close else ""
         known = ", ".join(sorted(self._impls)) or "none (load skills with --skills MODULE)"
