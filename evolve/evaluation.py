@@ -616,11 +616,10 @@ class ProcessEvaluator:
 
     def __init__(
         self, task: Task, skills: SkillSet, workers: int | None = None,
-        chunks_per_worker: int = 4, limits: EvalLimits | None = None,
+        limits: EvalLimits | None = None,
     ) -> None:
         self.task = task
         self.workers = workers or os.cpu_count() or 1
-        self.chunks_per_worker = chunks_per_worker  # kept for the API; chunks are guided
         self.terminals = skills.terminals
         self.limits = limits or EvalLimits()
         methods = multiprocessing.get_all_start_methods()
@@ -1053,7 +1052,7 @@ def make_evaluator(
     if backend == "serial":
         return SerialEvaluator(task, skills, limits)
     if backend == "process":
-        return ProcessEvaluator(task, skills, workers, chunks_per_worker, limits)
+        return ProcessEvaluator(task, skills, workers, limits)
     if backend == "ray":
         return RayEvaluator(task, skills, workers, chunks_per_worker, limits)
     raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")

@@ -159,11 +159,8 @@ class Blackboard:
         return dict(self._types)
 
     # -- snapshots and diffs ---------------------------------------------------------------
-    def snapshot(self) -> dict[str, Any]:
-        """A shallow copy of the contents (values are shared, not copied)."""
-        return dict(self._data)
-
     def to_dict(self) -> dict[str, Any]:
+        """A shallow copy of the contents (values are shared, not copied)."""
         return dict(self._data)
 
     def start_log(self) -> None:

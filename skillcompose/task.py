@@ -87,10 +87,6 @@ class Task:
     def solved(self, fitness: float) -> bool:
         return fitness <= self.target if self.minimize else fitness >= self.target
 
-    def better(self, a: float, b: float) -> bool:
-        """True when fitness ``a`` is strictly better than ``b``."""
-        return a < b if self.minimize else a > b
-
     def compile(self, fsa: FSA, backend: str | None = None) -> CompiledFSA:
         """``fsa`` compiled for this task: its skills, its backend, and its step limit."""
         if fsa.step_limit != self.step_limit:

@@ -250,5 +250,5 @@ def test_same_seed_same_run() -> None:
     for _ in range(2):
         bb = setup(np.random.default_rng(0))
         compiled.run(bb, 5)
-        runs.append(bb.snapshot())
+        runs.append(bb.to_dict())
     assert runs[0] == runs[1]
