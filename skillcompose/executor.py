@@ -194,12 +194,14 @@ class CompiledFSA:
         propagate: bool = False,
     ) -> RunResult:
         """Run once. ``rng`` is a Generator or a seed; ``propagate`` re-raises skill errors."""
-        return FSARun(self, bb, rng, trace=trace, propagate=propagate).run()
+        run = FSARun(self, bb, rng, trace=trace, propagate=propagate)
+        run.tick(True)
+        return run._result  # type: ignore[return-value]  # set: the run has ended
 
     def outcome(self, bb: Blackboard, rng: np.random.Generator) -> tuple[str, int]:
         """(outcome, steps) of one run, raising on skill errors: the evaluation hot path."""
-        result = FSARun(self, bb, rng, propagate=True).run()
-        return result.outcome, result.steps
+        run = FSARun(self, bb, rng, propagate=True)
+        return run.tick(True), run.steps
 
     def start(
         self,
@@ -234,21 +236,6 @@ class CompiledFSA:
             self._limited[key] = out
         return out
 
-    def prepare(
-        self, bb: Blackboard | None, rng: np.random.Generator | int | None
-    ) -> tuple[Blackboard, np.random.Generator]:
-        """The blackboard and generator a run uses (new ones when not given), with the FSA's
-        typed keys declared on the blackboard."""
-        if bb is None:
-            bb = Blackboard()
-        if not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
-        types = bb._types
-        for k, t in self.key_types.items():
-            if types.get(k) is not t:
-                bb.declare(k, t)
-        return bb, rng
-
     def undeclared(self, i: int, out: object) -> UndeclaredOutcomeError:
         """The error for state ``i``'s skill returning ``out``, which it did not declare."""
         return UndeclaredOutcomeError(
@@ -282,6 +269,15 @@ def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> di
     return out
 
 
+class _Raised:
+    """What a running activation's tick raised, handed from the hot path to the loop."""
+
+    __slots__ = ("exc",)
+
+    def __init__(self, exc: Exception) -> None:
+        self.exc = exc
+
+
 class _Expired:
     """What a state's activation gives when its time limit ran out."""
 
@@ -309,9 +305,12 @@ class FSARun:
         "_act",
         "_clock",
         "_events",
+        "_handed",
         "_i",
+        "_limit",
         "_pending",
         "_propagate",
+        "_record",
         "_result",
         "_t0",
         "_table",
@@ -333,7 +332,14 @@ class FSARun:
         time_limits: Mapping[str, float] | None = None,
         clock: Callable[[], float] | None = None,
     ) -> None:
-        bb, rng = compiled.prepare(bb, rng)
+        if bb is None:
+            bb = Blackboard()
+        if not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(rng)
+        types = bb._types  # the program's typed keys, declared on the run's blackboard
+        for k, t in compiled.key_types.items():
+            if types.get(k) is not t:
+                bb.declare(k, t)
         self.compiled = compiled
         self.bb = bb
         self.rng = rng
@@ -343,9 +349,12 @@ class FSARun:
         self._propagate = propagate
         self._i = compiled._start
         self._act: Activation | None = None
+        self._handed: Any = None  # an activation's outcome taken by tick's hot path
         self._t0 = 0.0
         self._result: RunResult | None = None
         self._events: list[TraceStep] | None = [] if trace else None
+        self._record = self._events.append if self._events is not None else None
+        self._limit = compiled.step_limit
         self._pending: dict[str, tuple[Any, Any]] = {}
         self.steps = 0
         """Skill completions so far (the count ``step_limit`` bounds)."""
@@ -387,17 +396,12 @@ class FSARun:
         return self._act is not None
 
     # -- running -----------------------------------------------------------------------------
-    def tick(self) -> str:
-        """Advance the current skill by one tick; :data:`RUNNING` or the run's outcome."""
-        if self._result is not None:
-            return self._result.outcome
-        return self._go(True)
 
     def run(self, *, max_ticks: int | None = None, period: float = 0.0) -> RunResult:
         """Tick until the run ends (or preempt it after ``max_ticks``); sleep ``period`` [s]
         between ticks, which a run waiting on a worker thread or hardware should do."""
         if max_ticks is None and period <= 0 and self._result is None:
-            self._go(False)
+            self.tick(_to_the_end=True)
         while self._result is None:
             if max_ticks is not None and self.ticks >= max_ticks:
                 return self.preempt()
@@ -405,68 +409,103 @@ class FSARun:
                 time.sleep(period)
         return self._result
 
-    def _go(self, once: bool) -> str:
-        """The interpreter: run steps until the run ends, or (``once``) for one tick."""
-        c = self.compiled
-        table = self._table
+    def tick(self, _to_the_end: bool = False) -> str:
+        """Advance the current skill by one tick; :data:`RUNNING` or the run's outcome.
+
+        This is the engine's interpreter. :meth:`run` passes ``_to_the_end``: the same loop
+        goes on, tick after tick, until the run ends."""
+        if self._result is not None:
+            return self._result.outcome
         bb = self.bb
+        act = self._act
+        out: Any
+        if act is not None and not _to_the_end and self._record is None:
+            # The next tick of a running activation, untraced: the hot path of tick-wise
+            # runs. While it keeps running this is the whole tick; its outcome (or what it
+            # raised) is handed to the loop below, which takes the transition.
+            _, _, access, _, limit = self._table[self._i]
+            if limit is None:
+                bb._client = access
+                try:
+                    out = act.tick()
+                except Exception as exc:
+                    out = _Raised(exc)
+                finally:
+                    bb._client = None
+                if out == RUNNING:
+                    self.ticks += 1
+                    return RUNNING
+                self._handed = out
+        record = self._record
+        if record is not None:
+            bb.take_log()  # drop writes made between ticks by others (a tree, a bridge)
+        table = self._table
         rng = self.rng
-        events = self._events
-        names, skills, ends = c.names, c.skills, c._ends
-        record = events.append if events is not None else None
-        new, step_type, nothing = _new, TraceStep, _NO_CHANGES
         i = self._i
         steps = done = self.steps
-        n = 0  # ticks of this call that began a state's tick (the rest count in _drive)
-        out: Any = None
-        if events is not None:
-            bb.take_log()  # drop writes made between ticks by others (a tree, a bridge)
+        n = 0  # ticks beyond the first of a step (an activation ticked on to its end)
         try:
-            for steps in range(done + 1, c.step_limit + 1):
+            for steps in range(done + 1, self._limit + 1) if _to_the_end else (done + 1,):
                 call, start, access, nxt, limit = table[i]
                 bb._client = access
-                n += 1
                 if start is None:
                     out = call(bb, rng)
-                    try:
-                        j = nxt[out]
-                    except KeyError:
-                        raise c.undeclared(i, out) from None
-                else:
-                    out = self._drive(start, limit, once)
-                    if out is _EXPIRED:
-                        out = TIMEOUT
-                        j = nxt.get(TIMEOUT, -len(ends))
-                    elif out == RUNNING:
-                        self._i, self.steps = i, steps - 1
-                        self.ticks += n
-                        if events is not None:
-                            self._collect()
-                        return RUNNING
+                else:  # a long-running skill: start its activation, tick it
+                    act = self._act
+                    if act is None:
+                        act = self._act = start(bb, rng)
+                        if limit is not None:
+                            self._t0 = self._clock()
+                        out = act.tick()
+                    elif self._handed is not None:
+                        out, self._handed = self._handed, None
+                        if type(out) is _Raised:
+                            raise out.exc
+                    elif limit is not None and self._clock() - self._t0 > limit:
+                        out = self._expire(act)
                     else:
-                        try:
-                            j = nxt[out]
-                        except KeyError:
-                            raise c.undeclared(i, out) from None
+                        out = act.tick()
+                    while out == RUNNING:
+                        if not _to_the_end:
+                            self.ticks += 1
+                            if record is not None:
+                                self._collect()
+                            return RUNNING
+                        n += 1
+                        if limit is not None and self._clock() - self._t0 > limit:
+                            out = self._expire(act)
+                        else:
+                            out = act.tick()
+                    self._act = None
+                    if out is _EXPIRED:  # the state's timeout transition, else the run's end
+                        ends = self.compiled._ends
+                        out, nxt = TIMEOUT, {TIMEOUT: nxt.get(TIMEOUT, -len(ends))}
+                try:
+                    j = nxt[out]
+                except KeyError:
+                    raise self.compiled.undeclared(i, out) from None
                 if record is not None:
-                    record(new(step_type, (
-                        steps, names[i], skills[i], out, ends[-j - 1] if j < 0 else names[j],
-                        self._changes() if bb._log or self._pending else nothing,
+                    c = self.compiled
+                    names, ends = c.names, c._ends
+                    record(_new(TraceStep, (
+                        steps, names[i], c.skills[i], out, ends[-j - 1] if j < 0 else names[j],
+                        self._changes() if bb._log or self._pending else _NO_CHANGES,
                     )))
                 if j < 0:
                     self.steps = steps
-                    self.ticks += n
-                    return self._finish(ends[-j - 1], steps, names[i])
+                    self.ticks += steps - done + n
+                    c = self.compiled
+                    return self._finish(c._ends[-j - 1], steps, c.names[i])
                 i = j
-                if once:
-                    break
         except Exception as exc:
             self._act = None
             bb._client = None
             self.steps = steps
-            self.ticks += n
-            if events is not None:
-                events.append(TraceStep(steps, names[i], skills[i], ERROR, ERROR, self._changes()))
+            self.ticks += steps - done + n
+            c = self.compiled
+            names = c.names
+            if record is not None:
+                record(TraceStep(steps, names[i], c.skills[i], ERROR, ERROR, self._changes()))
             self._finish(ERROR, steps, names[i], exc)
             if self._propagate:
                 raise
@@ -474,35 +513,17 @@ class FSARun:
         finally:
             bb._client = None
         self.steps = steps
-        self.ticks += n
-        if steps >= c.step_limit:
-            return self._finish(TIMEOUT, steps, names[i])
+        self.ticks += steps - done + n
         self._i = i
+        if steps >= self._limit:
+            return self._finish(TIMEOUT, steps, self.compiled.names[i])
         return RUNNING
 
-    def _drive(self, start: Starter, limit: float | None, once: bool) -> Any:
-        """Tick the current state's activation (starting it first): once, or until it ends."""
-        act = self._act
-        if act is None:
-            act = self._act = start(self.bb, self.rng)
-            if limit is not None:
-                self._t0 = self._clock()
-            out = act.tick()
-        else:
-            out = self._resume(act, limit)
-        while not once and out == RUNNING:
-            self.ticks += 1
-            out = self._resume(act, limit)
-        if out != RUNNING:
-            self._act = None
-        return out
-
-    def _resume(self, act: Activation, limit: float | None) -> Any:
-        if limit is not None and self._clock() - self._t0 > limit:
-            self._act = None
-            act.cancel()
-            return _EXPIRED
-        return act.tick()
+    def _expire(self, act: Activation) -> Any:
+        """The state's time limit ran out: cancel its activation."""
+        self._act = None
+        act.cancel()
+        return _EXPIRED
 
     def preempt(self) -> RunResult:
         """Stop now: cancel the running skill (once) and end with ``preempted``.

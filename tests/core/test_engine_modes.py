@@ -154,15 +154,23 @@ def all_modes(compiled: CompiledFSA, task: Task, seed: int) -> None:
         results[name] = (*_signature(res, task, bb), bb.to_dict())
         if trace:
             traces[name] = _trace(res)
-    for name, limits in (("ticked", None), ("time-limited", dict.fromkeys(compiled.names, 60.0))):
+    limited = dict.fromkeys(compiled.names, 60.0)
+    for name, limits, trace in (("ticked", None, False), ("ticked, traced", None, True),
+                                ("time-limited", limited, True)):
         bb, rng = fresh()
-        run = compiled.start(bb, rng, trace=True, time_limits=limits)
+        run = compiled.start(bb, rng, trace=trace, time_limits=limits)
         ticks = 0
         while run.tick() == RUNNING:
             ticks += 1
             assert ticks < 10_000_000
         results[name] = (*_signature(run.result, task, bb), bb.to_dict())
-        traces[name] = _trace(run.result)
+        if trace:
+            traces[name] = _trace(run.result)
+        if limits is None:  # run() counts the ticks it takes as tick() would
+            bb, rng = fresh()
+            whole = compiled.start(bb, rng, trace=trace)
+            whole.run()
+            assert whole.ticks == run.ticks == ticks + 1, name
     first = results["run"]
     assert results["outcome"][0] == first[0]
     if first[0] != "error":
