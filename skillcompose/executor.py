@@ -439,6 +439,10 @@ class FSARun:
         record = self._record
         if record is not None:
             bb.take_log()  # drop writes made between ticks by others (a tree, a bridge)
+            c = self.compiled
+            names, skills, ends, new, step, nothing = (
+                c.names, c.skills, c._ends, _new, TraceStep, _NO_CHANGES
+            )
         table = self._table
         rng = self.rng
         i = self._i
@@ -485,11 +489,9 @@ class FSARun:
                 except KeyError:
                     raise self.compiled.undeclared(i, out) from None
                 if record is not None:
-                    c = self.compiled
-                    names, ends = c.names, c._ends
-                    record(_new(TraceStep, (
-                        steps, names[i], c.skills[i], out, ends[-j - 1] if j < 0 else names[j],
-                        self._changes() if bb._log or self._pending else _NO_CHANGES,
+                    record(new(step, (
+                        steps, names[i], skills[i], out, ends[-j - 1] if j < 0 else names[j],
+                        self._changes() if bb._log or self._pending else nothing,
                     )))
                 if j < 0:
                     self.steps = steps
