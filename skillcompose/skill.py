@@ -205,15 +205,39 @@ class Skill:
         return f"<Skill {self.name} [{self.backend}] outcomes={list(self.spec.outcomes)}>"
 
 
+@typing.overload
 def skill(
-    fn: Any = None,
+    fn: Callable[..., Any],
     *,
     name: str | None = None,
     outcomes: Iterable[str] | None = None,
     reads: KeyDecl = (),
     writes: KeyDecl = (),
     backend: str = "default",
-) -> Any:
+) -> Skill: ...
+
+
+@typing.overload
+def skill(
+    fn: None = None,
+    *,
+    name: str | None = None,
+    outcomes: Iterable[str] | None = None,
+    reads: KeyDecl = (),
+    writes: KeyDecl = (),
+    backend: str = "default",
+) -> Callable[[Callable[..., Any]], Skill]: ...
+
+
+def skill(
+    fn: Callable[..., Any] | None = None,
+    *,
+    name: str | None = None,
+    outcomes: Iterable[str] | None = None,
+    reads: KeyDecl = (),
+    writes: KeyDecl = (),
+    backend: str = "default",
+) -> Skill | Callable[[Callable[..., Any]], Skill]:
     """Declare a skill.
 
     Use as ``@skill`` or ``@skill(reads=(...), writes=(...), outcomes=(...), name=...,
@@ -232,7 +256,7 @@ def skill(
       may hold one implementation per backend under the same name.
     """
 
-    def wrap(obj: Any) -> Skill:
+    def wrap(obj: Callable[..., Any]) -> Skill:
         return _make_skill(obj, name, outcomes, reads, writes, backend)
 
     if fn is not None:
