@@ -52,6 +52,12 @@ TARGET_P_FAIL = 0.3
 TARGET_SCENES = 0.95
 CHECK_SEED = 10_000
 SCENE_SEED = 30_000
+STACKING_SETTINGS = {"population": 300, "trials": 10, "confirm_trials": 1000,
+                     "confirm_rate": 0.92}
+"""Changes to the preset: the target's population; ten shared worlds per evaluation; a
+solution confirmed when at least 92 % of 1000 fresh worlds are stacked (the hand-written
+reference FSA stacks about 93 % at p_fail 0.3, and at 1000 worlds an FSA stacking 88 %
+passes about never)."""
 
 
 @dataclass(frozen=True)
@@ -67,6 +73,7 @@ class Run:
     reach_evolved: int
     reach_simplified: int
     fitness_check: float
+    stacked_check: float
     fsa: FSA
     history: list[float]
 
@@ -82,8 +89,10 @@ def run_seeds(seeds: Sequence[int], cfg: EvolutionConfig, workers: int, check: i
     for seed in seeds:
         r = evolve(task, cfg, seed=seed, workers=workers,
                    backend="process" if workers > 1 else "serial")
-        check_fitness = task.evaluate(compile_fsa(r.best_fsa, task.registry, "sim"),
-                                      CHECK_SEED, check)
+        scores = [f for _, f in task.run_trials(
+            compile_fsa(r.best_fsa, task.registry, "sim"), CHECK_SEED, check)]
+        check_fitness = statistics.fmean(scores)
+        stacked = sum(f == 0.0 for f in scores) / len(scores)
         run = Run(
             seed=seed, solved=r.solved, generations=r.generations,
             genome_evaluations=cfg.population * (r.generations + 1), episodes=r.evaluations,
@@ -91,13 +100,14 @@ def run_seeds(seeds: Sequence[int], cfg: EvolutionConfig, workers: int, check: i
             states_simplified=len(r.best_fsa.states),
             reach_evolved=_count(r.evolved_fsa, "MoveToReach"),
             reach_simplified=_count(r.best_fsa, "MoveToReach"),
-            fitness_check=check_fitness, fsa=r.best_fsa,
+            fitness_check=check_fitness, stacked_check=stacked, fsa=r.best_fsa,
             history=[h.best for h in r.history],
         )
         runs.append(run)
         print(f"seed {seed}: solved={r.solved} generations={r.generations} "
               f"wall={r.wall_time:.0f}s states {run.states_evolved}->{run.states_simplified} "
-              f"fitness on {check} fresh worlds {check_fitness:.3f}", file=sys.stderr,
+              f"on {check} fresh worlds: fitness {check_fitness:.3f}, stacked "
+              f"{100 * stacked:.1f} %", file=sys.stderr,
               flush=True)
     return runs
 
@@ -115,8 +125,8 @@ def figure12(best: Path, out: Path, reps: int, workers: int) -> list[dict[str, f
     with csv_path.open(encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     key = next(iter(rows[0]))
-    return [{"p_fail": float(r[key]), "mean": float(r["mean"]), "std": float(r["std"])}
-            for r in rows]
+    return [{"p_fail": float(r[key]), "mean": float(r["mean"]), "std": float(r["std"]),
+             "stacked": float(r["solved_rate"])} for r in rows]
 
 
 def kinematic_scenes(fsa: FSA, n: int, picture: Path) -> tuple[int, Counter[str], str]:
@@ -167,6 +177,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=int, default=5)
     p.add_argument("--preset", default="robust", choices=sorted(PRESETS))
+    p.add_argument("--population", type=int, default=STACKING_SETTINGS["population"])
+    p.add_argument("--trials", type=int, default=STACKING_SETTINGS["trials"],
+                   help="worlds per evaluation")
+    p.add_argument("--confirm", type=int, default=STACKING_SETTINGS["confirm_trials"],
+                   help="fresh worlds that confirm a solution")
+    p.add_argument("--confirm-rate", type=float, default=STACKING_SETTINGS["confirm_rate"],
+                   help="share of those that must be stacked")
     p.add_argument("--generations", type=int, default=400, help="budget per run")
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--check", type=int, default=1000, help="fresh worlds per evolved FSA")
@@ -177,7 +194,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    cfg = EvolutionConfig(**{**PRESETS[args.preset], "generations": args.generations})
+    cfg = EvolutionConfig(**{
+        **PRESETS[args.preset], "generations": args.generations, "population": args.population,
+        "trials": args.trials, "confirm_trials": args.confirm, "confirm_rate": args.confirm_rate,
+    })
     runs = run_seeds(range(args.seeds), cfg, args.workers, args.check)
     best_run = min(runs, key=lambda r: (not r.solved, r.fitness_check, r.states_simplified))
     best_file = out / "stacking_best.fsa.yaml"
@@ -206,24 +226,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         "",
         f"Written by `benchmarks/reproduce_stacking.py` on {platform.machine()} with "
         f"{os.cpu_count()} CPUs, {args.workers} worker(s), in {total / 60:.1f} minutes. "
-        f"Task `{TASK}` (step limit 15, p_fail 0.3, 3 worlds per evaluation; decisions in the "
-        "task's docstring), MoveToReach = `examples/move_to_reach.fsa.yaml` as a nested FSA.",
+        f"Task `{TASK}` (step limit 15, p_fail 0.3; decisions in the task's docstring), "
+        "MoveToReach = `examples/move_to_reach.fsa.yaml` as a nested FSA.",
         "",
-        f"Preset `{args.preset}`: population {cfg.population}, budget {cfg.generations} "
+        f"Preset `{args.preset}` with population {cfg.population}, {cfg.trials} shared worlds "
+        f"per evaluation, a solution confirmed when at least {100 * cfg.confirm_rate:.0f} % of "
+        f"{cfg.confirm_trials} fresh worlds are stacked; budget {cfg.generations} "
         "generations.",
         "",
         "## Evolution",
         "",
         "| seed | solved | generations | genome evaluations | wall [min] | states evolved → "
-        "simplified | MoveToReach states evolved → simplified | fitness on "
-        f"{args.check} fresh worlds |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "simplified | MoveToReach states evolved → simplified | on "
+        f"{args.check} fresh worlds: fitness | stacked |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in runs:
         lines.append(
             f"| {r.seed} | {r.solved} | {r.generations} | {r.genome_evaluations:,} | "
             f"{r.wall_time / 60:.1f} | {r.states_evolved} → {r.states_simplified} | "
-            f"{r.reach_evolved} → {r.reach_simplified} | {r.fitness_check:.3f} |")
+            f"{r.reach_evolved} → {r.reach_simplified} | {r.fitness_check:.3f} | "
+            f"{100 * r.stacked_check:.1f} % |")
     lines += [
         "",
         f"Solved {len(solved)} of {len(runs)}; median generations {median_gens} (paper: "
@@ -244,10 +267,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"`skillcompose robustness stacking_best.fsa.yaml --task {TASK} --p-fail 0:1:30 "
         f"--reps {args.reps}`: mean ± std of equation (2) at 30 failure probabilities.",
         "",
-        "| p_fail | mean | std |",
-        "| --- | --- | --- |",
+        "| p_fail | mean | std | stacked |",
+        "| --- | --- | --- | --- |",
     ]
-    lines += [f"| {r['p_fail']:.3f} | {r['mean']:.3f} | {r['std']:.3f} |" for r in sweep]
+    lines += [f"| {r['p_fail']:.3f} | {r['mean']:.3f} | {r['std']:.3f} | "
+              f"{100 * r['stacked']:.1f} % |" for r in sweep]
     worst_low = max(row["mean"] for row in low)
     lines += [
         "",

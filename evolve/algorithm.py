@@ -407,16 +407,26 @@ class _Run:
 
     def confirm(self) -> bool:
         """Re-run the best genome on ``confirm_trials`` fresh worlds; it stays the best (and
-        the task solved) only if it reaches the target there too, else its fitness becomes
-        that measured mean and evolution goes on."""
+        the task solved) only if it reaches the target there too (its mean, or, with
+        ``confirm_rate``, that share of the episodes), else its fitness becomes that measured
+        mean and evolution goes on."""
         assert self.best is not None
         g, _, gen = self.best
         trials = 1 if self.task.deterministic else self.cfg.confirm_trials
-        job = Job.of(g, self.seed, (_CONFIRM, self.generation), trials)
+        # By share: the same worlds for every confirmation of the run, so that an FSA (or a
+        # neutral variant of it) re-confirmed generation after generation cannot pass by
+        # drawing a lucky sample at last. By mean: fresh worlds each generation (as before).
+        rate = self.cfg.confirm_rate
+        key = (_CONFIRM,) if rate > 0.0 else (_CONFIRM, self.generation)
+        job = Job.of(g, self.seed, key, trials)
+        scores: list[float] = []
         with Guard(self.cfg.eval_time_limit) as guard:
-            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False)
+            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False, scores)
         self.evaluations += trials
-        if self.task.solved(mean):
+        if rate > 0.0 and not self.task.deterministic:
+            if sum(map(self.task.solved, scores)) >= rate * trials:
+                return True
+        elif self.task.solved(mean):
             return True
         self.best = (g, mean, gen)
         return False

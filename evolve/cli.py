@@ -104,6 +104,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--parsimony", action="store_true", help="fewer states wins at equal fitness")
     p.add_argument("--confirm", type=whole(0, MAX_TRIALS), dest="confirm_trials",
                    help="fresh trials that must confirm a solution before the run stops")
+    p.add_argument("--p-param", type=number(0.0, 1.0), dest="p_param",
+                   help="probability that each node of a mutated child also gets parameter "
+                        "noise (default 0, the paper; the push preset uses 1)")
+    p.add_argument("--confirm-rate", type=number(0.0, 1.0), dest="confirm_rate",
+                   help="with --confirm, the share of those trials that must each reach the "
+                        "target (default: their mean must)")
     p.add_argument("--checkpoint-every", type=whole(1, big),
                    help="generations between checkpoints (10)")
     p.add_argument("--no-simplify", action="store_true",
@@ -149,7 +155,8 @@ _SETTING_OPTIONS = (
     ("generations", "generations"), ("population", "population"),
     ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
     ("tournament", "tournament"), ("param_sigma", "param_sigma"),
-    ("confirm_trials", "confirm_trials"),
+    ("confirm_trials", "confirm_trials"), ("confirm_rate", "confirm_rate"),
+    ("p_param", "p_param"),
     ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
     ("worker_max_jobs", "worker_max_jobs"),
     ("worker_max_growth_mb", "worker_max_growth_mb"),

@@ -53,7 +53,11 @@ class EvolutionConfig:
     - ``confirm_trials``: when the best genome reaches the task's target, it is run again on
       this many fresh worlds; the task counts as solved only if it reaches the target there
       too (otherwise its fitness becomes that mean and evolution goes on). Guards against a
-      lucky solve on few trials.
+      lucky solve on few trials. ``confirm_rate`` > 0 asks instead that at least this share
+      of those episodes reach the target one by one (for tasks whose mean mixes rare large
+      scores with small ones, such as stacking's 50 for a run that never grasped); its
+      confirmations all use the same worlds, drawn once per run, so that an FSA confirmed
+      again generation after generation cannot pass by a lucky draw at last.
 
     Faults and limits (see docs/evolve.md, "Faults and limits"):
 
@@ -89,6 +93,7 @@ class EvolutionConfig:
     cache_refresh: int = 0
     parsimony: bool = False
     confirm_trials: int = 0
+    confirm_rate: float = 0.0
     p_param: float = 0.0
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
@@ -119,7 +124,7 @@ class EvolutionConfig:
         whole("confirm_trials", 0)
         whole("checkpoint_every", 1)
         whole("chunks_per_worker", 1)
-        for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param"):
+        for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
             prob(name)
         if self.trials is not None:
             whole("trials", 1)

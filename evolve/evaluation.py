@@ -252,11 +252,11 @@ def _user_interrupt(exc: BaseException, guard: Guard | None) -> bool:
 
 def evaluate_job(
     task: Task, compiler: GenomeCompiler, job: Job, guard: Guard | None = None,
-    explain: bool = True,
+    explain: bool = True, scores: list[float] | None = None,
 ) -> tuple[float, int, str | None]:
     """Mean fitness of one job, its fault code, and (when ``explain``) a summary of its
     first exception. Any fault costs the episode (a time-out: the whole job) the task's
-    worst fitness."""
+    worst fitness. Each episode's fitness is appended to ``scores`` when given."""
     worst = task.worst
     raised = 0
     first: str | None = None
@@ -297,6 +297,8 @@ def evaluate_job(
                 if math.isnan(f):
                     f = worst
                 total += f
+                if scores is not None:
+                    scores.append(f)
         finally:
             if guard is not None:
                 guard.disarm()

@@ -63,12 +63,14 @@ from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill,
 from skills.kinematic_world import (
     COLLISION_MARGIN_M,
     DETAIL_KEY,
+    GRASP_KEY,
     REASON_KEY,
     ROBOT_READS,
     ROBOT_WRITES,
     TORSO_RANGE_M,
     WORLD_READS,
     WORLD_WRITES,
+    GraspKind,
     RobotState,
     arms_for,
     base_collides,
@@ -83,10 +85,10 @@ from skills.kinematic_world import (
     object_position,
     reach,
     reach_either,
+    reach_grasp,
     read_state,
     scene_world,
     stack_object_name,
-    top_down_grasp_world,
     transform_robot_to_world,
 )
 from skills.move_to_push import SAFETY_M, base_in_room, network_goal, weights_parameter
@@ -587,27 +589,33 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
 _WHICH = Which
 
 
-@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped"),
-       writes=(*_MOVE_WRITES, "objects_grasped"), backend=BACKEND)
+@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped", "object_locations_world"),
+       writes=(*_MOVE_WRITES, "objects_grasped", "grasp_target"), backend=BACKEND)
 def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
-    """Grasp the first (``which`` > 0.5) or second stacking object from above, by IK with
-    the arm on its side (then the other). ``failure``: ``no_object``, ``already_holding``
-    or the IK reason. Appends the object to ``objects_grasped``."""
+    """Grasp the first (``which`` > 0.5) or second stacking object, from the side else from
+    above (:data:`skills.kinematic_world.GRASP_KINDS`), by IK with the arm on its side (then
+    the other). ``failure``: ``no_object``, ``not_recognised``, ``already_holding`` or the IK
+    reason. Writes the object it tries to ``grasp_target`` and,
+    grasped, appends it to ``objects_grasped``."""
     name = stack_object_name(bb, which)
     if name is None:
         return fail(bb, "no_object", "GraspParam: object_positions_world needs two objects")
+    if bb.get("object_locations_world") is None:
+        return fail(bb, "not_recognised", "GraspParam: the objects were not recognised; run "
+                    "RecogniseObject first")
     state = read_state(bb)
     if any(state.held[a] is not None for a in ARMS):
         return fail(bb, "already_holding", "GraspParam: a gripper already holds an object")
+    bb["grasp_target"] = name
     position = object_position(bb, name)
     assert position is not None  # the name came from the same mapping
-    answer = reach_either(state, arms_for(state, position),
-                          top_down_grasp_world(state.base_pose_world, position),
-                          scene_world(bb), rng)
+    kind, answer = reach_grasp(state, arms_for(state, position), position, scene_world(bb),
+                               rng)
     if answer.state is None:
         return fail(bb, answer.reason, f"GraspParam: {answer.detail}")
+    bb[GRASP_KEY] = kind
     held = dict(answer.state.held)
     held[answer.arm] = name
     commit(bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
@@ -657,8 +665,9 @@ def move_gripper_to_stack(
         if hit is not None:
             return fail(bb, "collision", f"MoveGripperToStack: the held {carried!r} at "
                         f"{fmt(position)} m would sink into {hit!r}")
-    answer = reach_either(state, arms, top_down_grasp_world(state.base_pose_world, position),
-                          Scene(tuple(table)), rng)
+    kinds: tuple[GraspKind, ...] = ("top",) if holding is None else \
+        (bb.get(GRASP_KEY) or "top",)
+    _, answer = reach_grasp(state, arms, position, Scene(tuple(table)), rng, kinds)
     if answer.state is None:
         return fail(bb, answer.reason, f"MoveGripperToStack: {answer.detail}")
     commit(bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
@@ -681,11 +690,13 @@ def open_gripper(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]
     held[arm] = None
     released = RobotState(state.base_pose_world, state.torso_height_m, state.q_arm_rad, held,
                           state.arm_in_use)
-    tool = commit(bb, released)[arm]
+    centre = object_position(bb, name) or (0.0, 0.0, 0.0)
+    commit(bb, released)
+    bb[GRASP_KEY] = None
     if name == "jug":
         bb["holding_jug"] = False  # the jug stays where it was let go (not modelled)
         return "success"
-    box = object_box(bb, name, tool.translation)
+    box = object_box(bb, name, centre)
     stack = bb.get("object_positions_world") or {}
     surfaces = [0.0]
     for other in (*scene_world(bb).boxes,

@@ -31,6 +31,8 @@ key                           meaning
 ``held_object_left``          name of the object in the left gripper, or None
 ``held_object_right``         name of the object in the right gripper, or None
 ``arm_in_use``                the arm that is "the gripper" of the abstract skills, or None
+``held_grasp``                how the held stacking object is held (``top`` at its centre or
+                              ``side`` 3 cm above it, :data:`GRASP_KINDS`), or None
 ``table_world``               the table, a :class:`robots.collision.Box`; default
                               :data:`DEFAULT_TABLE_WORLD`; None for no table
 ``obstacles_world``           more boxes to avoid (a tuple of ``Box``); default none
@@ -86,6 +88,8 @@ __all__ = [
     "DEFAULT_TABLE_WORLD",
     "DETAIL_KEY",
     "FAILURE_REASONS",
+    "GRASP_KEY",
+    "GRASP_KINDS",
     "HELD_KEYS",
     "IK_RESTARTS",
     "MOBILE_BASE_ROBOT",
@@ -95,23 +99,28 @@ __all__ = [
     "REASON_KEY",
     "ROBOT_READS",
     "ROBOT_WRITES",
+    "SIDE_GRASP_RISE_M",
     "TABLE_KEY",
     "TOOL_KEYS",
     "TORSO_KEY",
     "TORSO_RANGE_M",
     "WORLD_READS",
     "WORLD_WRITES",
+    "GraspKind",
     "Kinematics",
     "Reach",
     "RobotState",
     "base_collides",
     "commit",
     "fail",
+    "grasp_offset_world",
+    "grasp_pose_world",
     "horizontal_grasp_world",
     "kinematics",
     "object_box",
     "object_position",
     "reach",
+    "reach_grasp",
     "read_state",
     "scene_world",
     "top_down_grasp_world",
@@ -126,6 +135,8 @@ Q_KEYS: dict[Arm, str] = {"left": "q_left_arm_rad", "right": "q_right_arm_rad"}
 TOOL_KEYS: dict[Arm, str] = {"left": "tool_pose_left_world", "right": "tool_pose_right_world"}
 HELD_KEYS: dict[Arm, str] = {"left": "held_object_left", "right": "held_object_right"}
 ARM_IN_USE_KEY = "arm_in_use"
+GRASP_KEY = "held_grasp"
+"""How the held stacking object is held (:data:`GRASP_KINDS`), None when none is."""
 TABLE_KEY = "table_world"
 OBSTACLES_KEY = "obstacles_world"
 REASON_KEY = "last_failure_reason"
@@ -177,12 +188,12 @@ _POUR_KEYS = (
 _OBJECT_KEYS = ("object_position_world", "object_positions_world", "object_half_extents_m")
 ROBOT_READS = (
     BASE_POSE_KEY, TORSO_KEY, *Q_KEYS.values(), *HELD_KEYS.values(), ARM_IN_USE_KEY,
-    TABLE_KEY, OBSTACLES_KEY,
+    GRASP_KEY, TABLE_KEY, OBSTACLES_KEY,
 )
 """Keys every kinematic skill reads: the robot and the scene."""
 ROBOT_WRITES = (
     BASE_POSE_KEY, TORSO_KEY, *Q_KEYS.values(), *TOOL_KEYS.values(), *HELD_KEYS.values(),
-    ARM_IN_USE_KEY, REASON_KEY, DETAIL_KEY,
+    ARM_IN_USE_KEY, GRASP_KEY, REASON_KEY, DETAIL_KEY,
 )
 """Keys a moving kinematic skill writes about the robot."""
 WORLD_READS = (*_POUR_KEYS, *_OBJECT_KEYS)
@@ -295,7 +306,8 @@ def commit(
     Writes the robot keys and both tool poses; when an arm is in use, the abstract
     ``gripper_position_world`` / ``gripper_rotation`` (``gripper_rotation`` as given, else
     from the tool's rotation); every held object moves with its gripper (the jug's spout and
-    a stacking object's centre sit at the tool frame's origin), and a held jug's water pours
+    a stacking object's centre sit at the tool frame's origin, or :data:`SIDE_GRASP_RISE_M` under it
+    when ``held_grasp`` is ``side``), and a held jug's water pours
     or spills as in :mod:`skills.pour_water`. ``moved_objects`` sets other objects' positions.
     """
     kin = kinematics()
@@ -319,10 +331,12 @@ def commit(
             gripper_rotation = (float(rpy[0]), float(rpy[1]), float(rpy[2]))
         bb["gripper_rotation"] = gripper_rotation
     positions = dict(moved_objects or {})
+    offset = np.asarray(grasp_offset_world(bb.get(GRASP_KEY)))
     for arm in ARMS:
         name = state.held[arm]
         if name is not None:
-            positions[name] = _vec3(tools[arm].translation)
+            at = tools[arm].translation + (0.0 if name in ("jug", "object") else offset)
+            positions[name] = _vec3(at)
     stack = bb.get("object_positions_world")
     new_stack = dict(stack) if isinstance(stack, Mapping) else None
     for name, position in positions.items():
@@ -461,6 +475,48 @@ def top_down_grasp_world(base_pose_world: Sequence[float], position_world: Seque
     rotation = pin.rpy.rpyToMatrix(0.0, 0.0, float(base_pose_world[2])) @ \
         pin.rpy.rpyToMatrix(0.0, math.pi / 2, 0.0)
     return pin.SE3(rotation, np.asarray(position_world, float))
+
+
+GraspKind = Literal["top", "side"]
+GRASP_KINDS: tuple[GraspKind, ...] = ("side", "top")
+"""How a stacking object is held, in the order GraspParam tries them: from the side,
+:data:`SIDE_GRASP_RISE_M` above its centre (the fingers clear the table; it reaches farther
+across a table, and the PR2 takes bottles so), else from above at its centre. The object
+stays upright either way, and every later pose of the holding gripper keeps the kind it was
+grasped with."""
+SIDE_GRASP_RISE_M = 0.03
+"""A side grasp holds an object this far above its centre [m]."""
+
+
+def grasp_offset_world(kind: GraspKind | None) -> Vec3:
+    """A held object's centre relative to the tool point of a ``kind`` grasp [m]."""
+    return (0.0, 0.0, -SIDE_GRASP_RISE_M) if kind == "side" else (0.0, 0.0, 0.0)
+
+
+def grasp_pose_world(kind: GraspKind, base_pose_world: Sequence[float],
+                     centre_world: Sequence[float]) -> pin.SE3:
+    """The tool pose that holds an upright object with its centre at ``centre_world``."""
+    if kind == "top":
+        return top_down_grasp_world(base_pose_world, centre_world)
+    tool = np.asarray(centre_world, float) - np.asarray(grasp_offset_world(kind))
+    return horizontal_grasp_world(base_pose_world, tool)
+
+
+def reach_grasp(
+    state: RobotState, arms: Sequence[Arm], centre_world: Sequence[float], scene: Scene,
+    rng: np.random.Generator, kinds: Sequence[GraspKind] = GRASP_KINDS, **options: Any,
+) -> tuple[GraspKind, Reach]:
+    """:func:`reach_either` for the pose of each grasp kind in turn: the first success, else
+    the first kind's failure."""
+    first: tuple[GraspKind, Reach] | None = None
+    for kind in kinds:
+        answer = reach_either(state, arms, grasp_pose_world(kind, state.base_pose_world,
+                                                            centre_world), scene, rng, **options)
+        if answer.ok:
+            return kind, answer
+        first = first or (kind, answer)
+    assert first is not None
+    return first
 
 
 # -- motions ---------------------------------------------------------------------------------

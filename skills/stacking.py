@@ -19,6 +19,7 @@ key                             meaning
 ``arm_in_use``                  the arm of "the gripper", or None
 ``gripper_position_world``      the gripper in use; a held object's centre sits there [m]
 ``objects_grasped``             names of the objects grasped so far in this run
+``grasp_target``                the object GraspParam last tried to grasp (absent until then)
 =============================== ===========================================================
 
 - ``RecogniseObject``: stores where both objects are (``object_locations_world``); only
@@ -42,10 +43,15 @@ key                             meaning
 - ``MoveToReach``: the FSA evolved for moving to push (section 4.2), loaded from its file and
   run as a nested FSA (:func:`make_move_to_reach`), after a random ``failure`` with
   ``p_fail``. Its target is :func:`reach_target`: with an object held, the other object
-  (where it will be stacked); empty-handed, the first object. Its skills are compiled against
+  (where it will be stacked); empty-handed, the object GraspParam last tried to grasp (the first
+  before any). Its skills are compiled against
   its own registry (:func:`reach_registry`): RecogniseObject writes that target to
   ``object_location_world``, MoveBase is section 4.2's network, and Push is a check that
-  moves nothing (the classifier on ``sim``, IK on ``kinematic``). It shares the caller's
+  moves nothing (:func:`reach_check`: the classifier on ``sim``, IK on ``kinematic``) of
+  the point of :func:`reach_goal` by an arm of :func:`reach_arms`. The same check, as a
+  one-state FSA, runs first: when the target is already in reach MoveToReach succeeds
+  without moving (the evolved network never started in reach in section 4.2, and from
+  there it drove the robot away). It shares the caller's
   blackboard and generator and counts as one step of the caller; its own steps are bounded
   by its file's ``step_limit``. A held object moves with the base, and the arm in use stays
   the arm that holds it.
@@ -163,13 +169,18 @@ def stacked(bb: Blackboard) -> bool:
 
 def reach_target(bb: Blackboard) -> tuple[str, Vec3] | None:
     """What MoveToReach moves the robot to: with an object held, the other object (where it
-    will be stacked); empty-handed, the first object. None without two objects."""
+    will be stacked); empty-handed, the object GraspParam last tried to grasp
+    (``grasp_target``), else the first. None without two objects."""
     positions = bb.get("object_positions_world") or {}
     names = list(positions)
     if len(names) < 2:
         return None
     holding = held(bb)
-    name = names[0] if holding is None or holding[1] != names[0] else names[1]
+    if holding is None:
+        tried = bb.get("grasp_target")
+        name = tried if tried in positions else names[0]
+    else:
+        name = names[1] if holding[1] == names[0] else names[0]
     return str(name), _vec3(positions[name])
 
 
@@ -195,7 +206,8 @@ def recognise_objects(bb: Blackboard, rng: np.random.Generator) -> Literal["succ
 
 @skill(name="GraspParam", reads=(*_WORLD, *_ROBOT, "object_locations_world", "p_fail",
                                  "objects_grasped"),
-       writes=("arm_in_use", *HELD_KEYS.values(), "gripper_position_world", "objects_grasped"),
+       writes=("arm_in_use", *HELD_KEYS.values(), "gripper_position_world", "objects_grasped",
+               "grasp_target"),
        backend="sim")
 def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
@@ -204,6 +216,7 @@ def grasp_param(
     name = _which_name(bb, which)
     if name is None or bb.get("object_locations_world") is None or held(bb) is not None:
         return "failure"
+    bb["grasp_target"] = name
     boxes = object_boxes(bb)
     if any(_supports(boxes[name], b) for n, b in boxes.items() if n != name):
         return "failure"  # the other object stands on it
@@ -310,7 +323,8 @@ def check_success(bb: Blackboard, rng: np.random.Generator) -> Literal["success"
 
 
 # -- MoveToReach: the section 4.2 FSA as a skill ---------------------------------------------
-@skill(name="RecogniseObject", reads=("object_positions_world", *HELD_KEYS.values()),
+@skill(name="RecogniseObject", reads=("object_positions_world", "grasp_target",
+                                      *HELD_KEYS.values()),
        writes=("object_location_world",))
 def recognise_target(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
     """MoveToReach's RecogniseObject: its one object is :func:`reach_target`."""
@@ -345,8 +359,8 @@ def reach_arms(bb: Blackboard) -> tuple[Arm, ...]:
     return (holding[0],) if holding is not None else _ARMS
 
 
-@skill(name="Push", reads=("object_positions_world", "object_half_extents_m", *_ROBOT),
-       backend="sim")
+@skill(name="Push", reads=("object_positions_world", "object_half_extents_m", "grasp_target",
+                           *_ROBOT), backend="sim")
 def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """MoveToReach's terminating Push, which moves nothing: ``success`` when the classifier
     says an arm of :func:`reach_arms` reaches the point of :func:`reach_goal`."""

@@ -14,38 +14,39 @@ import numpy as np
 from skillcompose import Blackboard, skill
 from skills.kinematic_world import (
     DETAIL_KEY,
+    GRASP_KEY,
+    GRASP_KINDS,
     REASON_KEY,
     ROBOT_READS,
     WORLD_READS,
+    GraspKind,
     fail,
-    reach,
+    reach_grasp,
     read_state,
     scene_world,
-    top_down_grasp_world,
 )
-from skills.stacking import reach_arms, reach_goal
+from skills.stacking import held, reach_arms, reach_goal
 
 __all__ = ["reach_check"]
 
 
-@skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS),
+@skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS, "grasp_target"),
        writes=(REASON_KEY, DETAIL_KEY), backend="kinematic")
 def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
-    """MoveToReach's Push on the PR2 model, moving nothing: ``success`` when IK puts the tool
-    of an arm of :func:`skills.stacking.reach_arms` (the holding one, else the arm MoveBase
-    chose and then the other) from above on the point of :func:`skills.stacking.reach_goal`.
-    The arms stay where they are."""
+    """MoveToReach's Push on the PR2 model, moving nothing: ``success`` when IK finds a grasp
+    (:data:`skills.kinematic_world.GRASP_KINDS`; holding, the kind it holds with) by an arm of
+    :func:`skills.stacking.reach_arms` (the holding one, else the arm MoveBase chose and then
+    the other) of an object centred on the point of :func:`skills.stacking.reach_goal`. The
+    arms stay where they are."""
     goal = reach_goal(bb)
     if goal is None:
         return fail(bb, "no_object", "Push (MoveToReach): object_positions_world needs two "
                     "objects")
     state = read_state(bb)
     arms = sorted(reach_arms(bb), key=lambda a: a != state.arm_in_use)
-    answer = None
-    for arm in arms:
-        answer = reach(state, arm, top_down_grasp_world(state.base_pose_world, goal[1]),
-                       scene_world(bb), rng, diagnose=False)
-        if answer.state is not None:
-            return "success"
-    assert answer is not None
-    return fail(bb, answer.reason, f"Push (MoveToReach): {answer.detail}")
+    kinds: tuple[GraspKind, ...] = GRASP_KINDS if held(bb) is None else \
+        (bb.get(GRASP_KEY) or "top",)
+    _, answer = reach_grasp(state, arms, goal[1], scene_world(bb), rng, kinds, diagnose=False)
+    if answer.state is None:
+        return fail(bb, answer.reason, f"Push (MoveToReach): {answer.detail}")
+    return "success"

@@ -3,6 +3,7 @@ after kill -9 and resume; failures cost one evaluation, not the run."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import os
@@ -26,7 +27,7 @@ from evolve import (
     evolve,
     initialize,
 )
-from skillcompose import compile_fsa, load_fsa
+from skillcompose import Blackboard, compile_fsa, load_fsa
 from skillcompose.task import load_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -326,3 +327,34 @@ def test_confirmation_rejects_lucky_solutions() -> None:
     assert confirmed.generations >= lucky.generations
     assert solved_rate(confirmed.best_fsa) >= 0.9
     assert solved_rate(confirmed.best_fsa) > solved_rate(lucky.best_fsa)
+
+
+def test_confirm_rate_asks_a_share_of_fresh_worlds_instead_of_their_mean() -> None:
+    """A task where each episode reaches the target with probability 0.7 whatever the FSA:
+    its mean over fresh worlds never reaches 0, the share reaching it is about 0.7."""
+    toy = load_task("examples.toy_task", p_fail=0.0)
+
+    def lucky_world(rng: np.random.Generator) -> Blackboard:
+        bb = toy.setup(rng)
+        bb["luck"] = float(rng.random())
+        return bb
+
+    def luck(outcome: str, bb: Blackboard, steps: int) -> float:
+        return 0.0 if bb["luck"] < 0.7 else 1.0
+
+    task = dataclasses.replace(toy, setup=lucky_world, fitness=luck, ref=None)
+    cfg = EvolutionConfig(population=8, initial_nodes=3, generations=6, trials=1,
+                          confirm_trials=200)
+    by_mean = evolve(task, cfg, seed=0, simplify_result=False)
+    assert not by_mean.solved
+    assert evolve(task, cfg.replace(confirm_rate=0.6), seed=0, simplify_result=False).solved
+    # 0.75 is above the share (about 0.7) on the run's one set of confirmation worlds: it is
+    # never met, however often a solution is confirmed again (with a fresh draw each time,
+    # one in about 16 would pass)
+    strict = evolve(task, cfg.replace(confirm_rate=0.75, generations=60), seed=0,
+                    simplify_result=False)
+    assert not strict.solved and strict.generations == 60
+    from evolve import EvolutionConfigError
+
+    with pytest.raises(EvolutionConfigError, match=r"confirm_rate = 1\.5"):
+        EvolutionConfig(confirm_rate=1.5)

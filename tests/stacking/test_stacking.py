@@ -158,7 +158,7 @@ def test_fitness_cases() -> None:
     assert task_module.fitness("failure", never, 15) == task_module.NO_GRASP_FITNESS
     assert task_module.fitness("timeout", never, 15) == task_module.NO_GRASP_FITNESS
     grasped = world(objects_grasped=("box",))
-    d = math.dist(FIRST, SECOND)
+    d = math.hypot(0.1, 0.12)  # side by side: a bottom face centre to the other's top one
     assert task_module.fitness("timeout", grasped, 15) == pytest.approx(2 * d)
     assert task_module.fitness("failure", grasped, 9) == pytest.approx(d)
     # a success outcome that did not stack (a hand-routed file) scores as "otherwise"
@@ -166,7 +166,15 @@ def test_fitness_cases() -> None:
     # holding nothing at the end after a grasp is not the 50 case
     dropped = world(object_positions_world={"box": (0.6, -0.3, 0.81), "bottle": SECOND},
                     objects_grasped=("box",))
-    assert task_module.fitness("failure", dropped, 9) == pytest.approx(0.2)
+    assert task_module.fitness("failure", dropped, 9) == pytest.approx(math.hypot(0.2, 0.12))
+    # d is 0 when one stands on the other: held right on top scores near 0, not 0.12
+    held_on_top = world(object_positions_world={"box": (0.6, -0.1, 0.935), "bottle": SECOND},
+                        objects_grasped=("box",), held_object_right="box")
+    assert task_module.fitness("failure", held_on_top, 9) == pytest.approx(0.005)
+    touching = world(object_positions_world={"box": (0.6, -0.16, 0.81), "bottle": SECOND},
+                     objects_grasped=("box",))
+    assert task_module.fitness("failure", touching, 9) > \
+        task_module.fitness("failure", held_on_top, 9)
 
 
 def test_task_settings_are_checked() -> None:
@@ -286,6 +294,40 @@ def test_move_to_reach_targets_the_other_object_when_holding_and_carries_it() ->
             assert bb["object_location_world"] == bb["object_positions_world"][second]
             return
     pytest.fail("no world where MoveToReach moved the robot while holding an object")
+
+
+def test_move_to_reach_does_not_move_when_the_target_is_in_reach() -> None:
+    reach = st.make_move_to_reach(task_module.MOVE_TO_REACH_FILE, kinematic=False)
+    fn = reach.bind(None, "sim")
+    bb = recognised()  # the right arm reaches both objects from the origin
+    assert st.reach_check(bb, 0) == "success"  # empty-handed: either arm will do
+    rng = np.random.default_rng(3)
+    assert fn(bb, rng) == "success"
+    assert bb["base_pose_world"] == (0.0, 0.0, 0.0)
+    assert "object_location_world" not in bb  # the evolved FSA did not run
+    check = np.random.default_rng(3)
+    check.random()  # only the random failure's number was drawn
+    assert rng.random() == check.random()
+    far = _far_world(2)
+    assert st.reach_check(far, 0) == "failure"
+
+
+def test_reach_goal_holding_is_where_the_held_object_would_stand() -> None:
+    bb = holding_box()
+    name, point = st.reach_goal(bb)  # type: ignore[misc]
+    assert name == "bottle"
+    assert point == pytest.approx((SECOND[0], SECOND[1], SECOND[2] + 0.12))
+    assert st.reach_arms(bb) == ("right",)
+    assert st.reach_arms(recognised()) == ("left", "right")
+    assert st.reach_goal(world(object_positions_world={"box": FIRST})) is None
+
+
+def test_move_to_reach_goes_for_the_object_grasp_param_last_tried() -> None:
+    bb = recognised(p_fail=1.0)
+    assert st.reach_target(bb) == ("box", FIRST)  # before any grasp: the first
+    assert st.grasp_param(bb, 0, which=0.0) == "failure"  # a random failure
+    assert bb["grasp_target"] == "bottle"
+    assert st.reach_target(bb) == ("bottle", SECOND)
 
 
 # -- evolution ------------------------------------------------------------------------------

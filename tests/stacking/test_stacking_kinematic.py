@@ -13,7 +13,7 @@ from skillcompose.task import load_task
 from skills import kinematic as kin
 from skills import stacking as st
 from skills import stacking_kinematic as stk
-from tests.stacking.test_stacking import FIRST, SECOND, world
+from tests.stacking.test_stacking import FIRST, SECOND, recognised, world
 
 pytestmark = pytest.mark.kinematics
 EXAMPLES = Path(task_module.__file__).parent
@@ -27,7 +27,10 @@ def test_twins_share_the_sim_signatures() -> None:
 
 
 def test_grasp_stack_open_on_the_pr2() -> None:
-    bb = world()
+    unseen = world()
+    assert kin.grasp_param(unseen, np.random.default_rng(0), which=1.0) == "failure"
+    assert unseen["last_failure_reason"] == "not_recognised"
+    bb = recognised()
     rng = np.random.default_rng(0)
     assert kin.grasp_param(bb, rng, which=1.0) == "success"
     arm = bb["arm_in_use"]
@@ -41,8 +44,32 @@ def test_grasp_stack_open_on_the_pr2() -> None:
     assert st.check_success(bb, rng) == "success"
 
 
+def test_a_side_grasp_holds_the_object_upright_to_the_end() -> None:
+    from skills.kinematic_world import GRASP_KEY, SIDE_GRASP_RISE_M
+
+    far_first, far_second = (0.85, -0.2, 0.81), (0.85, -0.05, 0.81)  # beyond a grasp from above
+    bb = recognised(object_positions_world={"box": far_first, "bottle": far_second})
+    rng = np.random.default_rng(0)
+    assert kin.grasp_param(bb, rng, which=1.0) == "success"
+    assert bb[GRASP_KEY] == "side"
+    arm = bb["arm_in_use"]
+    tool = bb[f"tool_pose_{arm}_world"]
+    assert tool[:3] == pytest.approx((*far_first[:2], far_first[2] + SIDE_GRASP_RISE_M),
+                                     abs=1e-3)
+    assert tool[3:5] == pytest.approx((0.0, 0.0), abs=1e-3)  # horizontal: the box upright
+    assert bb["object_positions_world"]["box"] == pytest.approx(far_first, abs=1e-3)
+    assert kin.move_gripper_to_stack(bb, rng, which=0.0, dx=0.0, dy=0.0, dz=0.125) == "success"
+    tool = bb[f"tool_pose_{arm}_world"]
+    assert tool[3:5] == pytest.approx((0.0, 0.0), abs=1e-3)  # still held from the side
+    assert bb["object_positions_world"]["box"] == pytest.approx(
+        (far_second[0], far_second[1], far_second[2] + 0.125), abs=1e-3)
+    assert kin.open_gripper(bb, rng) == "success"
+    assert bb[GRASP_KEY] is None
+    assert st.check_success(bb, rng) == "success"
+
+
 def test_grasp_fails_out_of_reach_on_the_pr2() -> None:
-    bb = world(base_pose_world=(-1.5, 0.0, 0.0))
+    bb = recognised(base_pose_world=(-1.5, 0.0, 0.0))
     assert kin.grasp_param(bb, np.random.default_rng(0), which=1.0) == "failure"
     assert bb["last_failure_reason"] in ("unreachable", "joint_limits")
     assert bb["object_positions_world"]["box"] == FIRST
