@@ -372,12 +372,12 @@ class TreeSkill(Skill):
     """A py_trees subtree as a skill: ``success`` / ``failure`` from its final status."""
 
     __slots__ = ("_setup", "bridge", "factory", "tree")
+    kind = "tree"
 
     def __init__(
         self, spec: SkillSpec, source: TreeSource, bridge: BlackboardBridge
     ) -> None:
         super().__init__(spec, source, backend="default")
-        self.kind = "tree"
         if isinstance(source, py_trees.behaviour.Behaviour):
             self.tree: py_trees.behaviour.Behaviour | None = source
             self.factory: Callable[[], py_trees.behaviour.Behaviour] | None = None

@@ -28,6 +28,7 @@ class FSASkill(Skill):
     """A skill whose implementation is an FSA: long-running, ticked state by state."""
 
     __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
+    kind = "fsa"
 
     def __init__(
         self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str

@@ -39,15 +39,20 @@ from .blackboard import Access, Blackboard
 from .errors import ParamError, SkillDefinitionError, UndeclaredOutcomeError
 from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
 
-__all__ = ["LONG_RUNNING_KINDS", "Skill", "SkillFn", "SkillSpec", "skill"]
+__all__ = [
+    "GeneratorSkill",
+    "InstanceSkill",
+    "Skill",
+    "SkillFn",
+    "SkillSpec",
+    "TickingSkill",
+    "skill",
+]
 
 SkillFn = Callable[..., str]
 """``f(bb, rng, **params) -> outcome``."""
 
 KeyDecl = Iterable[str] | Mapping[str, type | tuple[type, ...]]
-
-LONG_RUNNING_KINDS = ("ticking", "generator")
-"""Skill kinds the tick-wise executor ticks: start/tick/cancel classes and generators."""
 
 
 @dataclass(frozen=True)
@@ -111,22 +116,23 @@ class SkillSpec:
 class Skill:
     """A declared skill: its :class:`SkillSpec`, its implementation and its backend label.
 
-    Calling a ``Skill`` runs it once with the blackboard's access limited to its declared
-    keys, which is handy in tests: ``move_to_object(bb, rng, approach=0.2)``.
+    This class is the function kind; each other kind (:class:`InstanceSkill`,
+    :class:`TickingSkill`, :class:`GeneratorSkill`, nested FSAs, py_trees subtrees) is a
+    subclass that says how it runs through :meth:`starter`, :meth:`bind` and
+    :meth:`cancel_hook`. Calling a ``Skill`` runs it once with the blackboard's access
+    limited to its declared keys, which is handy in tests: ``move_to_object(bb, rng,
+    approach=0.2)``.
     """
 
-    __slots__ = ("_instance", "backend", "impl", "is_class", "kind", "spec")
+    __slots__ = ("backend", "impl", "spec")
+    kind = "function"
+    """``function``, ``instance`` (callable class), ``ticking``, ``generator``, ..."""
+    is_class = False
 
-    def __init__(
-        self, spec: SkillSpec, impl: Any, *, backend: str = "default", is_class: bool = False
-    ) -> None:
+    def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         self.spec = spec
         self.impl = impl
         self.backend = backend
-        self.is_class = is_class
-        self.kind = _kind(impl, is_class)
-        """``function``, ``instance`` (callable class), ``ticking`` or ``generator``."""
-        self._instance: Any = None
 
     @property
     def name(self) -> str:
@@ -136,50 +142,29 @@ class Skill:
         """A copy labelled with another backend (same implementation, same subclass)."""
         twin = copy.copy(self)
         twin.backend = backend
-        twin._instance = None
         return twin
 
     @property
     def long_running(self) -> bool:
         """True for skills ticked until they finish (start/tick classes, generators)."""
-        return self.kind in LONG_RUNNING_KINDS
+        return False
 
     def starter(self, backend: str | None = None) -> Starter | None:
         """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
-        if self.kind == "ticking":
-            return functools.partial(start_instance, self.impl)
-        if self.kind == "generator":
-            return functools.partial(start_generator, self.impl, self.name)
         return None
 
     def cancel_hook(self, backend: str | None = None) -> Callable[[Blackboard], Any] | None:
-        """``cancel(bb)`` of an instant class skill's instance, called when a state's time
-        limit abandons it; None for skills without one (long-running skills cancel through
-        their activation)."""
-        if not self.is_class or self.long_running:
-            return None
-        hook = getattr(self.bind(None, backend), "cancel", None)
-        return hook if callable(hook) else None
+        """``cancel(bb)`` called when a state's time limit abandons this instant skill, if
+        it has one (long-running skills cancel through their activation)."""
+        return None
 
     def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
-        """The callable the executor runs: the function, or the class's one instance.
-
-        A long-running skill binds to a function that ticks it until it finishes.
-        """
+        """The callable that runs the skill to completion: the function itself, or, for a
+        long-running skill, a function that ticks it until it finishes."""
         start = self.starter(backend)
         if start is not None:
             return driven(start)
-        if not self.is_class:
-            return typing.cast(SkillFn, self.impl)
-        if self._instance is None:
-            try:
-                self._instance = self.impl()
-            except Exception as exc:
-                raise SkillDefinitionError(
-                    f"skill {self.name}: creating its instance ({self.impl.__name__}()) "
-                    f"failed: {exc!r}"
-                ) from exc
-        return typing.cast(SkillFn, self._instance)
+        return typing.cast(SkillFn, self.impl)
 
     def __call__(
         self, bb: Blackboard, rng: np.random.Generator | int | None = None, **params: Any
@@ -203,6 +188,67 @@ class Skill:
 
     def __repr__(self) -> str:
         return f"<Skill {self.name} [{self.backend}] outcomes={list(self.spec.outcomes)}>"
+
+
+class InstanceSkill(Skill):
+    """A class with ``__call__``: one instance, made on first use, runs every activation."""
+
+    __slots__ = ("_instance",)
+    kind = "instance"
+    is_class = True
+
+    def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
+        super().__init__(spec, impl, backend=backend)
+        self._instance: Any = None
+
+    def with_backend(self, backend: str) -> Skill:
+        twin = typing.cast(InstanceSkill, super().with_backend(backend))
+        twin._instance = None
+        return twin
+
+    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
+        if self._instance is None:
+            try:
+                self._instance = self.impl()
+            except Exception as exc:
+                raise SkillDefinitionError(
+                    f"skill {self.name}: creating its instance ({self.impl.__name__}()) "
+                    f"failed: {exc!r}"
+                ) from exc
+        return typing.cast(SkillFn, self._instance)
+
+    def cancel_hook(self, backend: str | None = None) -> Callable[[Blackboard], Any] | None:
+        hook = getattr(self.bind(None, backend), "cancel", None)
+        return hook if callable(hook) else None
+
+
+class TickingSkill(Skill):
+    """A class with ``start`` / ``tick`` / ``cancel``: a fresh instance per activation."""
+
+    __slots__ = ()
+    kind = "ticking"
+    is_class = True
+
+    @property
+    def long_running(self) -> bool:
+        return True
+
+    def starter(self, backend: str | None = None) -> Starter:
+        return functools.partial(start_instance, self.impl)
+
+
+class GeneratorSkill(Skill):
+    """A generator function that yields ``"running"`` until it returns its outcome."""
+
+    __slots__ = ()
+    kind = "generator"
+
+    @property
+    def long_running(self) -> bool:
+        return True
+
+    def starter(self, backend: str | None = None) -> Starter:
+        return functools.partial(start_generator, self.impl, self.name)
 
 
 @typing.overload
@@ -430,19 +476,16 @@ def _make_skill(
         key_types={**rt, **wt},
         doc=inspect.cleandoc(obj.__doc__ or ""),
     )
-    return Skill(spec, obj, backend=backend, is_class=is_class)
+    kind: type[Skill] = Skill
+    if is_class:
+        kind = TickingSkill if outcome_source is not None else InstanceSkill
+    elif inspect.isgeneratorfunction(obj):
+        kind = GeneratorSkill
+    return kind(spec, obj, backend=backend)
 
 
 def _is_ticking_class(cls: type) -> bool:
     return callable(getattr(cls, "tick", None))
-
-
-def _kind(impl: Any, is_class: bool) -> str:
-    if is_class:
-        return "ticking" if _is_ticking_class(impl) else "instance"
-    if inspect.isgeneratorfunction(impl):
-        return "generator"
-    return "function"
 
 
 def _annotations(func: Any) -> dict[str, Any]:
