@@ -1,20 +1,11 @@
 """The activation protocol: how a skill that takes many ticks is started, ticked and cancelled.
 
-This is the bottom layer of the engine. A long-running skill is started once per activation
-and returns an :class:`Activation`, whose ``tick()`` returns ``"running"`` (:data:`RUNNING`)
-until it returns an outcome, and whose ``cancel()`` is its cancel hook. A :data:`Starter` is
-``start(bb, rng, **params) -> Activation``; each kind of skill
-(:class:`~skillcompose.skill.Skill` and its subclasses) says how it starts through its
-``starter()`` method, so the engine never asks what kind a skill is.
-
-:class:`ThreadActivation` runs an instant skill under a wall-clock limit in a worker thread on
-a private copy of its declared keys and a copy of the random generator; its writes and
-generator state are committed when it returns in time. When it does not, the thread is
-abandoned (Python cannot kill it: it runs on, daemonised, against its private copy, so the
-run's blackboard and generator stay consistent) and the skill's cancel hook, if any, is
-called once.
+The bottom layer of the engine. A long-running skill is started once per activation and
+returns an :class:`Activation`, whose ``tick()`` returns ``"running"`` (:data:`RUNNING`) until
+it returns an outcome, and whose ``cancel()`` is its cancel hook. A :data:`Starter` is
+``start(bb, rng, **params) -> Activation``; each kind of :class:`~skillcompose.skill.Skill`
+gives its own through ``starter()``, so the engine never asks what kind a skill is.
 """
-
 from __future__ import annotations
 
 import copy
@@ -137,7 +128,11 @@ def driven(start: Starter) -> Callable[..., str]:
 
 
 class ThreadActivation:
-    """An instant skill under a wall-clock limit, run in a worker thread (see module doc)."""
+    """An instant skill under a wall-clock limit, run in a worker thread on a private copy
+    of its declared keys and of the generator, committed when it returns in time. A thread
+    that overruns is abandoned (Python cannot kill it; it runs on, daemonised, against its
+    copy, so the run's blackboard and generator stay consistent) and the skill's cancel
+    hook, if any, is called once."""
 
     __slots__ = (
         "_done", "_exc", "_hook", "_out", "_rng_copy", "_staged", "_thread", "bb", "rng",

@@ -1,27 +1,21 @@
 """The engine: compile an FSA once against a registry and a backend, then run it many times.
 
-:func:`compile_fsa` validates an :class:`~skillcompose.fsa.FSA` against a registry, resolves
-each state's skill implementation and its parameters, and builds a :class:`CompiledFSA`: the
-one program representation every run executes (its public constructor takes the FSA and, per
-state, the implementation and its parameters; evolution's genome compiler builds through it).
-
-:class:`FSARun` is the one interpreter. Each :meth:`FSARun.tick` advances the current state's
-skill by one tick and, when it finishes, takes the transition: an instant (function) skill
-finishes in the tick that calls it, a long-running one (:mod:`skillcompose.activation`) when its
-activation returns an outcome. :meth:`FSARun.run` is the same loop without returning between
-ticks, and :meth:`CompiledFSA.run` / :meth:`CompiledFSA.outcome` are that loop on a fresh run,
-so run-to-completion, tick-wise, traced and time-limited runs share one code path: one skill
-completion is one step toward ``step_limit``; a run ends with a terminal outcome, ``timeout``
-after ``step_limit`` steps, ``error`` when a skill raises, or ``preempted``.
+:func:`compile_fsa` validates an :class:`~skillcompose.fsa.FSA` against a registry and builds
+a :class:`CompiledFSA`, the one program representation (its public constructor takes the FSA
+and, per state, the implementation and its parameters; evolution's genome compiler uses it).
+:class:`FSARun` is the one interpreter: :meth:`FSARun.tick` advances the current state's skill
+by one tick and, when it finishes, takes the transition; :meth:`FSARun.run`,
+:meth:`CompiledFSA.run` and :meth:`CompiledFSA.outcome` are the same loop going on to the
+run's end, with or without a trace. One skill completion is one step toward ``step_limit``; a
+run ends with a terminal outcome, ``timeout`` after ``step_limit`` steps, ``error`` when a
+skill raises, or ``preempted``.
 
 Wall-clock limits per state (``time_limit`` in the file, or ``time_limits={"Grasp": 2.0}`` in
-seconds) end a state that runs too long with the outcome ``timeout``: the state's ``timeout``
-transition when its skill declares that outcome, else the run ends with ``timeout``. For a
-long-running skill the limit is checked before each tick (a single tick that never returns
-cannot be interrupted in Python); an instant skill under a limit runs in a worker thread
+seconds) end a state that runs too long with ``timeout``: the state's ``timeout`` transition
+when its skill declares that outcome, else the run's end. A long-running skill's limit is
+checked before each tick; an instant skill under a limit runs in a worker thread
 (:class:`~skillcompose.activation.ThreadActivation`).
 """
-
 from __future__ import annotations
 
 import functools
@@ -113,19 +107,8 @@ class CompiledFSA:
     """
 
     __slots__ = (
-        "_ends",
-        "_limited",
-        "_start",
-        "_table",
-        "backend",
-        "fsa",
-        "impls",
-        "key_types",
-        "names",
-        "skills",
-        "step_limit",
-        "terminals",
-        "time_limits",
+        "_ends", "_limited", "_start", "_table", "backend", "fsa", "impls", "key_types", "names",
+        "skills", "step_limit", "terminals", "time_limits",
     )
 
     def __init__(
@@ -302,23 +285,8 @@ class FSARun:
     """
 
     __slots__ = (
-        "_act",
-        "_clock",
-        "_events",
-        "_handed",
-        "_i",
-        "_limit",
-        "_pending",
-        "_propagate",
-        "_record",
-        "_result",
-        "_t0",
-        "_table",
-        "bb",
-        "compiled",
-        "rng",
-        "steps",
-        "ticks",
+        "_act", "_clock", "_events", "_handed", "_i", "_limit", "_pending", "_propagate",
+        "_record", "_result", "_t0", "_table", "bb", "compiled", "rng", "steps", "ticks",
     )
 
     def __init__(
