@@ -285,8 +285,9 @@ class FSARun:
     """
 
     __slots__ = (
-        "_act", "_clock", "_events", "_handed", "_i", "_limit", "_pending", "_propagate",
-        "_record", "_result", "_t0", "_table", "bb", "compiled", "rng", "steps", "ticks",
+        "_act", "_clock", "_events", "_handed", "_i", "_limit", "_numbers", "_pending",
+        "_propagate", "_record", "_result", "_t0", "_table", "bb", "compiled", "rng", "steps",
+        "ticks",
     )
 
     def __init__(
@@ -323,6 +324,7 @@ class FSARun:
         self._events: list[TraceStep] | None = [] if trace else None
         self._record = self._events.append if self._events is not None else None
         self._limit = compiled.step_limit
+        self._numbers = iter(range(1, compiled.step_limit + 1))  # the steps still to run
         self._pending: dict[str, tuple[Any, Any]] = {}
         self.steps = 0
         """Skill completions so far (the count ``step_limit`` bounds)."""
@@ -385,12 +387,13 @@ class FSARun:
         if self._result is not None:
             return self._result.outcome
         bb = self.bb
-        act = self._act
         out: Any
-        if act is not None and not _to_the_end and self._record is None:
+        act: Activation | None
+        if self._act is not None and not _to_the_end and self._record is None:
             # The next tick of a running activation, untraced: the hot path of tick-wise
             # runs. While it keeps running this is the whole tick; its outcome (or what it
             # raised) is handed to the loop below, which takes the transition.
+            act = self._act
             _, _, access, _, limit = self._table[self._i]
             if limit is None:
                 bb._client = access
@@ -414,10 +417,10 @@ class FSARun:
         table = self._table
         rng = self.rng
         i = self._i
-        steps = done = self.steps
-        n = 0  # ticks beyond the first of a step (an activation ticked on to its end)
+        done = self.steps  # (done < step_limit: the loop below runs at least once)
+        n = -done  # + steps: the ticks of this call (n counts an activation's further ticks)
         try:
-            for steps in range(done + 1, self._limit + 1) if _to_the_end else (done + 1,):
+            for steps in self._numbers:
                 call, start, access, nxt, limit = table[i]
                 bb._client = access
                 if start is None:
@@ -439,6 +442,7 @@ class FSARun:
                         out = act.tick()
                     while out == RUNNING:
                         if not _to_the_end:
+                            self._numbers = iter(range(steps, self._limit + 1))  # not done
                             self.ticks += 1
                             if record is not None:
                                 self._collect()
@@ -463,15 +467,17 @@ class FSARun:
                     )))
                 if j < 0:
                     self.steps = steps
-                    self.ticks += steps - done + n
+                    self.ticks += steps + n
                     c = self.compiled
                     return self._finish(c._ends[-j - 1], steps, c.names[i])
                 i = j
+                if not _to_the_end:
+                    break
         except Exception as exc:
             self._act = None
             bb._client = None
             self.steps = steps
-            self.ticks += steps - done + n
+            self.ticks += steps + n
             c = self.compiled
             names = c.names
             if record is not None:
@@ -483,7 +489,7 @@ class FSARun:
         finally:
             bb._client = None
         self.steps = steps
-        self.ticks += steps - done + n
+        self.ticks += steps + n
         self._i = i
         if steps >= self._limit:
             return self._finish(TIMEOUT, steps, self.compiled.names[i])
