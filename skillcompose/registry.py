@@ -2,8 +2,9 @@
 
 A :class:`Registry` is an instance; nothing registers itself globally. One skill name may
 have several implementations, one per *backend* (``"sim"``, ``"kinematic"``...), all with the
-same outcomes and parameters. An FSA file names skills only; the caller picks the backend
-when it compiles or runs the FSA, so one file runs on any backend.
+same outcomes and parameters (ranges, units, scales, defaults). An FSA file names skills
+only; the caller picks the backend when it compiles or runs the FSA, so one file runs on any
+backend and means the same on each.
 
 Skills are collected from Python modules (a dotted name or a ``.py`` path): a module either
 defines ``register(registry)`` or has its :class:`~skillcompose.skill.Skill` objects picked
@@ -194,7 +195,10 @@ class Registry:
 
 
 def _sig(spec: SkillSpec) -> list[str]:
-    return [f"{p.name}: {p.describe_range()}" for p in spec.params]
+    return [
+        f"{p.name}: {p.describe_range()}{', log scale' if p.scale == 'log' else ''}, "
+        f"default {p.default!r}" for p in spec.params
+    ]
 
 
 def import_target(target: str) -> ModuleType:

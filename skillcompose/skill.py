@@ -106,11 +106,11 @@ class SkillSpec:
 
     def same_signature(self, other: SkillSpec) -> bool:
         """True when two implementations are interchangeable in an FSA file."""
-        return (
-            self.outcomes == other.outcomes
-            and [(p.name, p.kind, p.low, p.high, p.choices, p.size) for p in self.params]
-            == [(p.name, p.kind, p.low, p.high, p.choices, p.size) for p in other.params]
-        )
+        def sig(spec: SkillSpec) -> list[tuple[Any, ...]]:
+            return [(p.name, p.kind, p.low, p.high, p.choices, p.size, p.unit, p.scale,
+                     _plain(p.default)) for p in spec.params]
+
+        return self.outcomes == other.outcomes and sig(self) == sig(other)
 
 
 class Skill:
@@ -482,6 +482,11 @@ def _make_skill(
     elif inspect.isgeneratorfunction(obj):
         kind = GeneratorSkill
     return kind(spec, obj, backend=backend)
+
+
+def _plain(value: Any) -> Any:
+    """A parameter default in a form that compares by value (vectors as tuples)."""
+    return tuple(np.asarray(value).ravel().tolist()) if isinstance(value, np.ndarray) else value
 
 
 def _is_ticking_class(cls: type) -> bool:

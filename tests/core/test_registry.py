@@ -1,7 +1,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import pytest
@@ -9,8 +9,10 @@ import pytest
 from skillcompose import (
     FSA,
     Blackboard,
+    Param,
     Registry,
     RegistryError,
+    Skill,
     State,
     UnknownSkillError,
     compile_fsa,
@@ -56,6 +58,39 @@ def test_backends_must_share_a_signature() -> None:
     reg = Registry([sim])  # type: ignore[list-item]
     with pytest.raises(RegistryError, match="same signature"):
         reg.add(detect_real)
+
+
+@skill(name="Reach", backend="sim")
+def _reach_sim(bb: Blackboard, rng: np.random.Generator, *,
+               d: Annotated[float, Param(0.01, 1.0, unit="m")] = 0.5) -> Literal["success"]:
+    return "success"
+
+
+@skill(name="Reach", backend="cm")
+def _reach_cm(bb: Blackboard, rng: np.random.Generator, *,
+              d: Annotated[float, Param(0.01, 1.0, unit="cm")] = 0.5) -> Literal["success"]:
+    return "success"
+
+
+@skill(name="Reach", backend="log")
+def _reach_log(bb: Blackboard, rng: np.random.Generator, *,
+               d: Annotated[float, Param(0.01, 1.0, unit="m", scale="log")] = 0.5
+               ) -> Literal["success"]:
+    return "success"
+
+
+@skill(name="Reach", backend="default")
+def _reach_default(bb: Blackboard, rng: np.random.Generator, *,
+                   d: Annotated[float, Param(0.01, 1.0, unit="m")] = 0.25) -> Literal["success"]:
+    return "success"
+
+
+@pytest.mark.parametrize("twin", [_reach_cm, _reach_log, _reach_default],
+                         ids=["unit", "scale", "default"])
+def test_twins_cannot_differ_in_unit_scale_or_default(twin: Skill) -> None:
+    """One file must mean one thing on every backend."""
+    with pytest.raises(RegistryError, match="same signature"):
+        Registry([_reach_sim, twin])
 
 
 def test_unknown_skill_suggests() -> None:
