@@ -118,6 +118,7 @@ def fsas(draw: st.DrawFn) -> FSA:
                draw(st.integers(1, 500)), draw(st.sampled_from(["", "task_a"])), meta)
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(fsas())
 def test_random_fsas_survive_save_and_load(fsa: FSA) -> None:

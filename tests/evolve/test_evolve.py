@@ -210,6 +210,7 @@ def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
     assert result.generations == 2
 
 
+@pytest.mark.slow
 def test_the_pool_survives_many_deaths_in_one_batch() -> None:
     """Killers spread over a large batch (and a batch of nothing but killers): every worker
     that dies is replaced while the batch runs, what it finished is kept, and only the
