@@ -32,7 +32,6 @@ import numpy as np
 from ruamel.yaml.comments import CommentedMap
 
 from skillcompose import FSA, dumps_fsa, load_fsa, loads_fsa
-from skillcompose.executor import trial_rngs
 from skillcompose.fsa import Source
 from skillcompose.task import Task
 
@@ -45,7 +44,7 @@ from .evaluation import (
     Faults,
     Guard,
     Job,
-    evaluate_episode,
+    evaluate_episodes,
     evaluate_job,
     make_evaluator,
 )
@@ -612,8 +611,7 @@ def check_fresh(
     raised = timeouts = 0
     seq = np.random.SeedSequence(seed, spawn_key=(_FRESH,))
     with Guard(time_limit) as guard:
-        for rng in trial_rngs(seq, trials):
-            f, code = evaluate_episode(task, compiled, rng, guard)
+        for f, code in evaluate_episodes(task, compiled, seq, trials, guard):
             raised += code >> 2
             timeouts += code & TIMED_OUT
             scores.append(f)

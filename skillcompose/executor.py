@@ -620,23 +620,26 @@ def run_ticking(
 
 
 def trial_seeds(
-    seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int
+    seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int, start: int = 0
 ) -> list[np.random.SeedSequence]:
     """Independent child seeds of ``seed``, one per trial: the same for the same seed.
 
-    A ``SeedSequence`` is copied first, so calling this twice gives the same children.
+    They are the children ``start .. start + trials - 1`` that ``seed.spawn`` would give, so
+    a range of trials can be drawn alone (in a worker, say) with the same numbers. A
+    ``SeedSequence`` is read, never spawned from: calling this twice gives the same children.
     """
-    if isinstance(seed, np.random.SeedSequence):
-        seq = np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key)
-    else:
-        seq = np.random.SeedSequence(seed)
-    return seq.spawn(trials)
+    seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return [
+        np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, k),
+                               pool_size=seq.pool_size)
+        for k in range(start, start + trials)
+    ]
 
 
 def trial_rngs(
-    seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int
+    seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int, start: int = 0
 ) -> Iterator[np.random.Generator]:
-    for s in trial_seeds(seed, trials):
+    for s in trial_seeds(seed, trials, start):
         yield np.random.default_rng(s)
 
 

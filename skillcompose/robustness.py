@@ -221,12 +221,10 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
     steps = np.empty(n, dtype=np.int64)
     counts: dict[str, int] = {}
     solved = 0
-    setup, score, run, is_solved = task.setup, task.score, compiled.run, task.solved
-    for k in range(n):
-        rng = np.random.default_rng(np.random.SeedSequence(job.seed, spawn_key=(job.start + k,)))
-        bb = setup(rng)
-        result = run(bb, rng)
-        fit[k] = f = score(result, bb)
+    is_solved = task.solved
+    for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n,
+                                                          start=job.start)):
+        fit[k] = f
         solved += is_solved(f)
         steps[k] = result.steps
         counts[result.outcome] = counts.get(result.outcome, 0) + 1
