@@ -390,15 +390,16 @@ class SerialEvaluator:
 
 
 # -- process pool ------------------------------------------------------------------------
-_WORKER: tuple[Task, GenomeCompiler] | None = None
 _RECYCLE = "recycle"
 
 
-def _init_worker(source: TaskRef | Task, terminals: tuple[str, ...]) -> None:
-    """Build the task once per worker process, from its module and settings."""
-    global _WORKER
+def _init_worker(
+    source: TaskRef | Task, terminals: tuple[str, ...]
+) -> tuple[Task, GenomeCompiler]:
+    """The task and its genome compiler, built once per worker process from the task's
+    module and settings, and held by the worker's loop (no module global)."""
     task = source.build() if isinstance(source, TaskRef) else source
-    _WORKER = (task, GenomeCompiler(task, SkillSet.from_task(task, terminals)))
+    return task, GenomeCompiler(task, SkillSet.from_task(task, terminals))
 
 
 def _rss_mb() -> float:
@@ -542,13 +543,10 @@ def _worker_main(
     with contextlib.suppress(OSError, AttributeError):
         os.nice(10)
     try:
-        _init_worker(source, terminals)
+        task, compiler = _init_worker(source, terminals)
     except BaseException:
         conn.send(("failed", traceback.format_exc()))
         return
-    if _WORKER is None:  # pragma: no cover - the initializer always sets it
-        return
-    task, compiler = _WORKER
     guard = Guard(limits.time_limit).install()
     recycler = _Recycler(limits)
     conn.send(("ready", None))

@@ -329,6 +329,7 @@ class IKSolver:
         time_budget_s: float | None = None,
         diagnose: bool = True,
         max_restarts: int | None = None,
+        rng: np.random.Generator | None = None,
     ) -> IKResult:
         """Solve for the chain coordinates that put the tool frame on ``target``.
 
@@ -342,7 +343,11 @@ class IKSolver:
                 from ``unreachable``.
             max_restarts: stop after this many restarts; with a generous time budget
                 this makes the answer independent of the machine's speed.
+            rng: the generator of this call's restarts, so that callers sharing a solver
+                (threads included) never share its draws; by default the solver's own
+                (``rng``, seeded from ``seed``).
         """
+        draws = self.rng if rng is None else rng
         start = time.perf_counter()
         budget = self.time_budget_s if time_budget_s is None else time_budget_s
         deadline = start + budget
@@ -392,7 +397,7 @@ class IKSolver:
             ):
                 break
             restarts += 1
-            theta = np.where(free, self._restart(seed_theta, restarts), theta)
+            theta = np.where(free, self._restart(seed_theta, restarts, draws), theta)
             if chain.has_base:
                 theta[:3] = np.where(free[:3], best[1][:3], theta[:3])
 
@@ -400,7 +405,7 @@ class IKSolver:
         _, theta, err = best
         if saw_collision:
             status, why = IKStatus.COLLISION, "every solution found collides with the scene"
-        elif diagnose and self._solvable_without_limits(target, theta, free):
+        elif diagnose and self._solvable_without_limits(target, theta, free, draws):
             status, why = IKStatus.JOINT_LIMITS, "solutions exist only outside the joint limits"
         elif diagnose:
             status, why = IKStatus.UNREACHABLE, "no solution found even without joint limits"
@@ -428,17 +433,19 @@ class IKSolver:
             else:
                 moved[first], moved[flex], moved[last] = rolled[0], -value, rolled[1]
 
-    def _restart(self, seed_theta: FloatArray, restart: int) -> FloatArray:
+    def _restart(
+        self, seed_theta: FloatArray, restart: int, rng: np.random.Generator
+    ) -> FloatArray:
         """Restart coordinates: odd restarts uniform inside the limits, even ones
         near the seed (Gaussian, ``restart_spread`` of each range, clipped)."""
         if restart % 2 == 1 or self.restart_spread <= 0.0:
-            return self.rng.uniform(self._sample_low, self._sample_high)
+            return rng.uniform(self._sample_low, self._sample_high)
         spread = self.restart_spread * (self._sample_high - self._sample_low)
-        near = seed_theta + spread * self.rng.standard_normal(seed_theta.shape[0])
+        near = seed_theta + spread * rng.standard_normal(seed_theta.shape[0])
         return np.clip(near, self._sample_low, self._sample_high)
 
     def _solvable_without_limits(
-        self, target: IKTarget, theta: FloatArray, free: FloatArray
+        self, target: IKTarget, theta: FloatArray, free: FloatArray, rng: np.random.Generator
     ) -> bool:
         inf = np.full_like(theta, np.inf)
         low = np.where(free, -inf, theta)
@@ -449,7 +456,7 @@ class IKSolver:
             start = (
                 theta
                 if attempt == 0
-                else np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
+                else np.where(free, rng.uniform(self._sample_low, self._sample_high), theta)
             )
             _, _, _, ok = self._attempt(start, target, goal, free, low, high, deadline)
             if ok:

@@ -155,3 +155,25 @@ def test_same_seed_same_answer(pr2: RobotModel) -> None:
     ]
     assert answers[0] is not None and answers[1] is not None
     np.testing.assert_array_equal(answers[0], answers[1])
+
+
+def test_a_generator_per_call_draws_as_the_solver_seeded_alike(pr2: RobotModel) -> None:
+    """``solve(rng=...)`` restarts from the given generator (the run's) and leaves the
+    solver's own alone: callers sharing one solver never share its draws."""
+    chain = pr2.chain("left_arm_torso")
+    goal = chain.transform_tool_to_world("left", chain.sample_coordinates(np.random.default_rng(9)))
+    target = IKTarget.from_transform(goal)
+    options = {"initial": np.zeros(8), "time_budget_s": 10.0, "max_restarts": 6,
+               "diagnose": True, "collides": lambda chain, theta: True}  # every restart runs
+    seeded = IKSolver(chain=chain, arm="left", seed=4).solve(target, **options)
+    shared = IKSolver(chain=chain, arm="left", seed=0)
+    own = shared.rng.bit_generator.state
+    given = shared.solve(target, rng=np.random.default_rng(4), **options)
+    assert shared.rng.bit_generator.state == own
+    assert seeded.coordinates is not None and given.coordinates is not None
+    np.testing.assert_array_equal(seeded.coordinates, given.coordinates)
+    assert (seeded.status, seeded.iterations, seeded.restarts) == \
+        (given.status, given.iterations, given.restarts)
+    assert (given.status, given.restarts) == (IKStatus.COLLISION, 6)
+    other = shared.solve(target, rng=np.random.default_rng(5), **options)
+    assert not np.array_equal(other.coordinates, given.coordinates)
