@@ -18,7 +18,7 @@ from skillcompose import (
     compile_fsa,
     skill,
 )
-from tests.core import demo_skills
+from tests.skillcompose import demo_skills
 
 
 def _backend_pair() -> tuple[object, object]:
@@ -101,7 +101,7 @@ def test_unknown_skill_suggests() -> None:
 
 def test_load_by_dotted_name_and_by_path(tmp_path: Path) -> None:
     reg = Registry()
-    added = reg.load_module("tests.core.demo_skills")
+    added = reg.load_module("tests.skillcompose.demo_skills")
     assert "GraspObject" in reg and len(added) == len(reg)
     f = tmp_path / "my_skills.py"
     f.write_text(
@@ -151,7 +151,7 @@ def test_entry_points_group(monkeypatch: pytest.MonkeyPatch) -> None:
 
     import skillcompose.registry as registry_module
 
-    ep = metadata.EntryPoint("demo", "tests.core.demo_skills", "skillcompose.skills")
+    ep = metadata.EntryPoint("demo", "tests.skillcompose.demo_skills", "skillcompose.skills")
 
     def fake(group: str) -> list[metadata.EntryPoint]:
         return [ep] if group == "skillcompose.skills" else []
