@@ -65,12 +65,15 @@ class State:
 
 @dataclass(frozen=True)
 class Source:
-    """Where an FSA was read from, to point errors at lines and to save edits in place."""
+    """Where an FSA came from, in plain data: the file's path and the positions of its keys
+    (errors point at lines), its text (a writer that keeps the file's comments and layout
+    reads it again), and the states renamed since (old name -> new), so that such a writer
+    tells a renamed state from a new one."""
 
     path: str | None
     positions: Mapping[tuple[str, ...], tuple[int, int]] = field(default_factory=dict)
-    document: Any = None  # the round-trip YAML document (comments, order, formatting)
-    renames: Mapping[str, str] = field(default_factory=dict)  # old state name -> new
+    text: str | None = None
+    renames: Mapping[str, str] = field(default_factory=dict)
 
     def where(self, *keys: str) -> tuple[int | None, int | None]:
         """1-based (line, column) of the deepest known key on the path ``keys``."""
