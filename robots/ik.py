@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import enum
 import math
+import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -166,7 +167,7 @@ class IKSolver:
         self.rng = np.random.default_rng(self.seed)
         self._fid = self.chain.tool_frame_id(self.arm)
         self._model = self.chain.model
-        self._data = self._model.createData()
+        self._local = threading.local()  # per thread: Pinocchio data, configuration
         self._has_planar = self.chain.has_base
         self._sample_low = np.where(
             np.isfinite(self.chain.lower_limits), self.chain.lower_limits, -np.pi
@@ -175,7 +176,6 @@ class IKSolver:
             np.isfinite(self.chain.upper_limits), self.chain.upper_limits, np.pi
         )
         self._reach = _ReachBound.build(self.chain, self.arm)
-        self._q = pin.neutral(self._model)
         self._scalar_q, self._scalar_v = self.chain._scalar_q, self.chain._scalar_v
         self._unbounded_q, self._unbounded_v = self.chain._unbounded_q, self.chain._unbounded_v
         prismatic = np.array([n == TORSO_JOINT for n in self.chain.coordinate_names], dtype=bool)
@@ -191,11 +191,20 @@ class IKSolver:
             finite, 0.5 * (np.where(finite, low, 0.0) + np.where(finite, high, 0.0)), 0.0
         )
 
-    def _load_q(self, theta: FloatArray) -> FloatArray:
-        """Fill the preallocated Pinocchio configuration from chain coordinates."""
+    def _work(self) -> tuple[pin.Data, FloatArray]:
+        """This thread's Pinocchio data and configuration vector: threads sharing a solver
+        (a skill thread left running past its state's time limit, say) never share them."""
+        local = self._local
+        try:
+            return local.work
+        except AttributeError:
+            local.work = (self._model.createData(), pin.neutral(self._model))
+            return local.work
+
+    def _load_q(self, theta: FloatArray, q: FloatArray) -> FloatArray:
+        """Fill this thread's Pinocchio configuration ``q`` from chain coordinates."""
         if self._has_planar:
             return self.chain.q_from_coordinates(theta)
-        q = self._q
         q[self._scalar_q] = theta[self._scalar_v]
         angles = theta[self._unbounded_v]
         q[self._unbounded_q] = np.cos(angles)
@@ -212,8 +221,9 @@ class IKSolver:
         Jacobian ``Jlog6 @ J_local`` (a step ``d`` with ``jac @ d = err`` reaches the goal
         to first order). Position targets: world position error, world-axes Jacobian.
         """
-        model, data, fid = self._model, self._data, self._fid
-        pin.computeJointJacobians(model, data, self._load_q(theta))
+        model, fid = self._model, self._fid
+        data, q = self._work()
+        pin.computeJointJacobians(model, data, self._load_q(theta, q))
         placement = pin.updateFramePlacement(model, data, fid)
         if goal is None:
             jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
