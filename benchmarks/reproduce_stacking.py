@@ -21,6 +21,7 @@ generation of every seed).
 from __future__ import annotations
 
 import argparse
+import ast
 import csv
 import os
 import platform
@@ -35,7 +36,6 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from evolve import PRESETS, EvolutionConfig, evolve
-from examples import stacking as stacking_task
 from skillcompose import FSA, compile_fsa, load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.executor import trial_rngs
@@ -53,6 +53,7 @@ TARGET_P_FAIL = 0.3
 TARGET_SCENES = 0.95
 CHECK_SEED = 10_000
 REFERENCE = ROOT / "examples" / "stacking_reference.fsa.yaml"
+TASK_FILE = ROOT / "examples" / "stacking.py"
 SCENE_SEED = 30_000
 STACKING_SETTINGS = {"population": 300, "trials": 10, "confirm_trials": 1000,
                      "confirm_rate": 0.92}
@@ -168,10 +169,11 @@ def sim_check(fsa: FSA, n: int) -> tuple[float, float]:
 
 def decisions() -> list[str]:
     """The task's decisions where section 4.3 is vague, from its module docstring."""
-    doc = stacking_task.__doc__ or ""
+    doc = ast.get_docstring(ast.parse(TASK_FILE.read_text(encoding="utf-8"))) or ""
     start = doc.index("Decisions where")
+    body = doc[start:].split("\n", 1)[1].strip()
     return [line.strip() if not line.startswith("  ") else "  " + line.strip()
-            for line in doc[start:].strip().splitlines()[1:]]
+            for line in body.splitlines()]
 
 
 def plot_histories(runs: Sequence[Run], path: Path) -> None:
