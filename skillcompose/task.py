@@ -160,8 +160,8 @@ class Task:
     ) -> Iterator[Trial]:
         """:func:`trials` of this task: its worlds, its score, its worst fitness; ``trials``
         defaults to the task's, ``options`` are :func:`trials`' keywords."""
-        return _trials(compiled, seed, trials or self.trials, setup=self.setup,
-                       score=self.score, worst=self.worst, **options)
+        return _trials(compiled, seed, self.trials if trials is None else trials,
+                       setup=self.setup, score=self.score, worst=self.worst, **options)
 
     def run_trials(
         self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None, trials: int
@@ -174,7 +174,8 @@ class Task:
         trials: int | None = None,
     ) -> float:
         """Mean fitness over ``trials`` (default: the task's) worlds drawn from ``seed``."""
-        return float(np.mean([t.fitness for t in self.each_trial(compiled, seed, trials)]))
+        runs = self.each_trial(compiled, seed, trials or self.trials)
+        return float(np.mean([t.fitness for t in runs]))
 
 
 _trials = trials  # Task's field ``trials`` hides the function inside the class
