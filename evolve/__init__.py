@@ -41,7 +41,7 @@ from .operators import (
     mutate_genes,
     mutate_node,
 )
-from .rundir import RunDir, draw_fsa, fsa_dot, plot_history
+from .rundir import RunDir, draw_fsa, plot_history
 from .simplify import merge_duplicates, simplify
 
 __all__ = [
@@ -75,7 +75,6 @@ __all__ = [
     "evaluate_genome",
     "evolve",
     "fix_start",
-    "fsa_dot",
     "initialize",
     "make_evaluator",
     "merge_duplicates",

@@ -15,7 +15,6 @@ resumed from a checkpoint is the same as one never interrupted.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 import os
@@ -29,11 +28,9 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
-from ruamel.yaml.comments import CommentedMap
 
 from skillcompose import FSA, dumps_fsa, load_fsa, loads_fsa
-from skillcompose.executor import trial_rngs
-from skillcompose.fsa import Source
+from skillcompose.fsafile import in_layout_of
 from skillcompose.task import Task
 
 from .config import EvolutionConfig
@@ -45,7 +42,7 @@ from .evaluation import (
     Faults,
     Guard,
     Job,
-    evaluate_episode,
+    evaluate_episodes,
     evaluate_job,
     make_evaluator,
 )
@@ -585,16 +582,7 @@ class _SeedNames:
             for n, st in fsa.states.items()
         }
         named = fsa.replace(states=states, start=to(fsa.start))
-        source = self.seed.source
-        if source is None or not isinstance(source.document, CommentedMap):
-            return named
-        doc = copy.deepcopy(source.document)
-        kept = doc.get("states")
-        if isinstance(kept, CommentedMap):
-            for gone in [k for k in kept if k not in unchanged or k not in rename.values()]:
-                del kept[gone]
-        doc.yaml_set_start_comment(header)
-        return named.replace(source=Source(None, {}, doc))
+        return in_layout_of(named, self.seed, unchanged & set(rename.values()), header)
 
 
 _FAULT_FIELDS = frozenset(Faults().to_dict())
@@ -612,8 +600,7 @@ def check_fresh(
     raised = timeouts = 0
     seq = np.random.SeedSequence(seed, spawn_key=(_FRESH,))
     with Guard(time_limit) as guard:
-        for rng in trial_rngs(seq, trials):
-            f, code = evaluate_episode(task, compiled, rng, guard)
+        for f, code in evaluate_episodes(task, compiled, seq, trials, guard):
             raised += code >> 2
             timeouts += code & TIMED_OUT
             scores.append(f)

@@ -40,7 +40,7 @@ from typing import Any, NamedTuple, Protocol, cast
 
 import numpy as np
 
-from skillcompose.executor import CompiledFSA, error_summary, trial_rngs
+from skillcompose.executor import CompiledFSA, error_summary
 from skillcompose.task import Task, TaskRef
 
 from .errors import EvolutionError
@@ -56,7 +56,7 @@ __all__ = [
     "ProcessEvaluator",
     "RayEvaluator",
     "SerialEvaluator",
-    "evaluate_episode",
+    "evaluate_episodes",
     "evaluate_genome",
     "evaluate_job",
     "make_evaluator",
@@ -217,6 +217,19 @@ class Guard:
     def disarm(self) -> None:
         self.armed = False
 
+    @contextlib.contextmanager
+    def episode(self) -> Iterator[None]:
+        """Armed while the block runs, and disarmed after it however it ends."""
+        self.arm()
+        try:
+            yield
+        finally:
+            try:
+                self.disarm()
+            except _TimeUp:  # the alarm came as the block ended: it still ran too long
+                self.disarm()
+                raise
+
     def _on_alarm(self, signum: int, frame: FrameType | None) -> None:
         if self.armed and self.time_limit is not None and \
                 time.monotonic() - self.started > self.time_limit:
@@ -250,6 +263,12 @@ def _user_interrupt(exc: BaseException, guard: Guard | None) -> bool:
     )
 
 
+def _fault(exc: BaseException, guard: Guard | None) -> bool:
+    """Whether ``exc``, raised in an episode, is the FSA's fault (it scores the worst
+    fitness) rather than the job's time-out or the user's Ctrl-C (they end the job)."""
+    return not isinstance(exc, _TimeUp) and not _user_interrupt(exc, guard)
+
+
 def evaluate_job(
     task: Task, compiler: GenomeCompiler, job: Job, guard: Guard | None = None,
     explain: bool = True, scores: list[float] | None = None,
@@ -274,28 +293,14 @@ def evaluate_job(
                     raise
                 return worst, job.trials << _FLAGS, error_summary(exc) if explain else None
             seq = np.random.SeedSequence(job.seed, spawn_key=job.spawn_key)
-            for rng in trial_rngs(seq, job.trials):
-                try:
-                    bb = task.setup(rng)
-                    res = compiled.run(bb, rng)
-                    if res.error is not None:
-                        raised += 1
-                        if explain and first is None:
-                            first = error_summary(res.error)
-                        f = worst
-                    else:
-                        f = task.score(res, bb)
-                except _TimeUp:
-                    raise
-                except BaseException as exc:
-                    if _user_interrupt(exc, guard):
-                        raise
+            for trial in task.each_trial(compiled, seq, job.trials,
+                                         catch=lambda exc: _fault(exc, guard)):
+                error = trial.result.error
+                if error is not None:
                     raised += 1
                     if explain and first is None:
-                        first = error_summary(exc)
-                    f = worst
-                if math.isnan(f):
-                    f = worst
+                        first = error_summary(error)
+                f = worst if math.isnan(trial.fitness) else trial.fitness
                 total += f
                 if scores is not None:
                     scores.append(f)
@@ -309,31 +314,23 @@ def evaluate_job(
     return total / job.trials, raised << _FLAGS, first
 
 
-def evaluate_episode(
-    task: Task, compiled: CompiledFSA, rng: np.random.Generator, guard: Guard
-) -> tuple[float, int]:
-    """One episode of a compiled FSA under ``guard``'s time limit: its fitness and fault
-    code (as :func:`evaluate_job`'s)."""
-    try:
-        try:
-            guard.arm()
-            bb = task.setup(rng)
-            res = compiled.run(bb, rng)
-            if res.error is not None:
-                return task.worst, 1 << _FLAGS
-            f = task.score(res, bb)
-            return (task.worst if math.isnan(f) else f), 0
-        except _TimeUp:
-            raise
-        except BaseException as exc:
-            if _user_interrupt(exc, guard):
-                raise
-            return task.worst, 1 << _FLAGS
-        finally:
-            guard.disarm()
-    except _TimeUp:
-        guard.disarm()
-        return task.worst, TIMED_OUT
+def evaluate_episodes(
+    task: Task, compiled: CompiledFSA, seed: int | np.random.SeedSequence, trials: int,
+    guard: Guard,
+) -> list[tuple[float, int]]:
+    """Episodes of a compiled FSA on ``trials`` worlds from ``seed``, each under ``guard``'s
+    time limit: each one's fitness and fault code (as :func:`evaluate_job`'s)."""
+    out = []
+    for trial in task.each_trial(compiled, seed, trials, each=guard.episode,
+                                 catch=lambda exc: not _user_interrupt(exc, guard)):
+        error = trial.result.error
+        if isinstance(error, _TimeUp):
+            out.append((task.worst, TIMED_OUT))
+        elif error is not None:
+            out.append((task.worst, 1 << _FLAGS))
+        else:
+            out.append((task.worst if math.isnan(trial.fitness) else trial.fitness, 0))
+    return out
 
 
 def evaluate_genome(task: Task, compiler: GenomeCompiler, job: Job) -> float:
@@ -393,15 +390,16 @@ class SerialEvaluator:
 
 
 # -- process pool ------------------------------------------------------------------------
-_WORKER: tuple[Task, GenomeCompiler] | None = None
 _RECYCLE = "recycle"
 
 
-def _init_worker(source: TaskRef | Task, terminals: tuple[str, ...]) -> None:
-    """Build the task once per worker process, from its module and settings."""
-    global _WORKER
+def _init_worker(
+    source: TaskRef | Task, terminals: tuple[str, ...]
+) -> tuple[Task, GenomeCompiler]:
+    """The task and its genome compiler, built once per worker process from the task's
+    module and settings, and held by the worker's loop (no module global)."""
     task = source.build() if isinstance(source, TaskRef) else source
-    _WORKER = (task, GenomeCompiler(task, SkillSet.from_task(task, terminals)))
+    return task, GenomeCompiler(task, SkillSet.from_task(task, terminals))
 
 
 def _rss_mb() -> float:
@@ -545,13 +543,10 @@ def _worker_main(
     with contextlib.suppress(OSError, AttributeError):
         os.nice(10)
     try:
-        _init_worker(source, terminals)
+        task, compiler = _init_worker(source, terminals)
     except BaseException:
         conn.send(("failed", traceback.format_exc()))
         return
-    if _WORKER is None:  # pragma: no cover - the initializer always sets it
-        return
-    task, compiler = _WORKER
     guard = Guard(limits.time_limit).install()
     recycler = _Recycler(limits)
     conn.send(("ready", None))
@@ -618,11 +613,10 @@ class ProcessEvaluator:
 
     def __init__(
         self, task: Task, skills: SkillSet, workers: int | None = None,
-        chunks_per_worker: int = 4, limits: EvalLimits | None = None,
+        limits: EvalLimits | None = None,
     ) -> None:
         self.task = task
         self.workers = workers or os.cpu_count() or 1
-        self.chunks_per_worker = chunks_per_worker  # kept for the API; chunks are guided
         self.terminals = skills.terminals
         self.limits = limits or EvalLimits()
         methods = multiprocessing.get_all_start_methods()
@@ -1055,7 +1049,7 @@ def make_evaluator(
     if backend == "serial":
         return SerialEvaluator(task, skills, limits)
     if backend == "process":
-        return ProcessEvaluator(task, skills, workers, chunks_per_worker, limits)
+        return ProcessEvaluator(task, skills, workers, limits)
     if backend == "ray":
         return RayEvaluator(task, skills, workers, chunks_per_worker, limits)
     raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")

@@ -14,15 +14,13 @@ bound once; the run itself is the runtime's executor, not a second interpreter.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import re
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from skillcompose import FSA, CompiledFSA, ParamSpec, Skill, State
-from skillcompose.blackboard import Access
 from skillcompose.fsa import RESERVED_OUTCOMES
 from skillcompose.task import Task
 
@@ -396,9 +394,9 @@ def _line(fsa: FSA, *keys: str) -> str:
 class GenomeCompiler:
     """Compiles genomes to the runtime's :class:`CompiledFSA`, cheaply, many times.
 
-    Skill implementations are resolved and bound once; each compilation maps the parameters
-    to the skills' units, binds them and builds the integer transition table that
-    :meth:`CompiledFSA.run` executes. Genomes are valid by construction, so the registry
+    Skill implementations are resolved once; each compilation maps the parameters to the
+    skills' units and builds the program through :class:`CompiledFSA`'s constructor, as
+    :func:`~skillcompose.compile_fsa` does. Genomes are valid by construction, so the registry
     check of :func:`~skillcompose.compile_fsa` is skipped.
     """
 
@@ -407,17 +405,7 @@ class GenomeCompiler:
         self.skills = skills
         self.backend = task.backend or reg.backend
         self.step_limit = step_limit if step_limit is not None else task.step_limit
-        self._impls: list[Skill] = []  # for tick-wise runs (long-running skills, limits)
-        self._fns: list[Callable[..., str]] = []
-        self._access: list[Access] = []
-        self._key_types: dict[str, Any] = {}
-        for c in skills.choices:
-            impl = reg.resolve(c.name, self.backend)
-            self._impls.append(impl)
-            self._fns.append(impl.bind(reg, self.backend))
-            self._access.append(impl.spec.access())
-            for k, t in impl.spec.key_types.items():
-                self._key_types.setdefault(k, t)
+        self._impls: list[Skill] = [reg.resolve(c.name, self.backend) for c in skills.choices]
 
     def fsa(self, g: Genome, **kw: Any) -> FSA:
         return g.to_fsa(self.skills, step_limit=self.step_limit, **kw)
@@ -425,30 +413,19 @@ class GenomeCompiler:
     def compile(self, g: Genome) -> CompiledFSA:
         skills = self.skills
         order = g.reachable()
-        index = {k: i for i, k in enumerate(order)}
-        names: list[str] = []
-        skill_names: list[str] = []
-        table: list[tuple[Callable[..., str], Access, dict[str, int]]] = []
-        states: dict[str, State] = {}
         terminals = skills.terminals
-        for k in order:
-            names.append(f"{skills.choices[g.nodes[k].skill].name}_{k}")
+        names = [f"{skills.choices[g.nodes[k].skill].name}_{k}" for k in order]
+        index = {k: names[i] for i, k in enumerate(order)}
+        states: dict[str, State] = {}
+        impls: list[tuple[Skill, dict[str, Any]]] = []
         for i, k in enumerate(order):
             n = g.nodes[k]
             c = skills.choices[n.skill]
-            fn = self._fns[n.skill]
             kwargs = c.decode(n.params)
-            if kwargs:
-                fn = functools.partial(fn, **kwargs)
-            nxt = dict(zip(c.outcomes, [index[t] if t >= 0 else t for t in n.edges], strict=True))
-            skill_names.append(c.name)
-            table.append((fn, self._access[n.skill], nxt))
             states[names[i]] = State(c.name, kwargs, {
-                o: (names[index[t]] if t >= 0 else terminals[-t - 1])
+                o: (index[t] if t >= 0 else terminals[-t - 1])
                 for o, t in zip(c.outcomes, n.edges, strict=True)
             })
+            impls.append((self._impls[n.skill], kwargs))
         fsa = FSA.trusted(states, names[0], terminals, self.step_limit)  # valid by construction
-        impls = [(self._impls[g.nodes[k].skill], dict(states[names[i]].params))
-                 for i, k in enumerate(order)]
-        return CompiledFSA(fsa, table, names, skill_names, self._key_types, self.backend,
-                           impls)
+        return CompiledFSA(fsa, impls, self.backend)

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from skillcompose import FSA, save_fsa
+from skillcompose.draw import render, to_dot
 from skillcompose.files import TEMPORARY_MARK, atomic_write, temporary_beside
 from skillcompose.registry import Registry
 
@@ -43,7 +44,7 @@ try:
 except ImportError:  # pragma: no cover - platforms without flock: no lock
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "RunDir", "draw_fsa", "fsa_dot",
+__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "RunDir", "draw_fsa",
            "plot_history"]
 
 CHECKPOINT_FORMAT = "skillcompose evolve checkpoint"
@@ -148,13 +149,7 @@ class RunDir:
         self, fsa: FSA, registry: Registry, header: str, path: Path | None = None
     ) -> None:
         save_fsa(fsa, path or self.best_yaml, registry, header=header)
-        try:
-            from skillcompose.draw import to_dot
-
-            dot = to_dot(fsa)
-        except ImportError:  # an older runtime without skillcompose.draw
-            dot = fsa_dot(fsa)
-        _atomic_write(self.best_dot, dot.encode())
+        _atomic_write(self.best_dot, to_dot(fsa).encode())
 
     # -- checkpoints -----------------------------------------------------------------------
     def save_checkpoint(self, state: Mapping[str, Any]) -> None:
@@ -242,29 +237,9 @@ class RunDir:
             draw_fsa(fsa, self.best_png)
 
 
-def fsa_dot(fsa: FSA) -> str:
-    """Graphviz text of an FSA: states as boxes, terminal outcomes as double circles."""
-    lines = [f'digraph "{fsa.name or "fsa"}" {{', "  rankdir=LR;", "  node [shape=box];"]
-    lines.append(f'  __start [shape=point]; __start -> "{fsa.start}";')
-    for t in fsa.terminals:
-        lines.append(f'  "{t}" [shape=doublecircle];')
-    for sname, st in fsa.states.items():
-        params = ", ".join(
-            f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in st.params.items()
-        )
-        label = sname + (f"\\n{params}" if params else "")
-        lines.append(f'  "{sname}" [label="{label}"];')
-        for o, t in st.transitions.items():
-            lines.append(f'  "{sname}" -> "{t}" [label="{o}"];')
-    lines.append("}")
-    return "\n".join(lines) + "\n"
-
-
 def draw_fsa(fsa: FSA, path: str | os.PathLike[str]) -> None:
     """A picture of an FSA (Graphviz when installed, else matplotlib): see
     :func:`skillcompose.draw.render`."""
-    from skillcompose.draw import render
-
     with temporary_beside(path, suffix=Path(path).suffix) as tmp:  # never half a picture
         render(fsa, tmp)
 

@@ -20,10 +20,9 @@ import dataclasses
 from typing import Any
 
 from skillcompose import FSA
-from skillcompose.executor import trial_rngs
 from skillcompose.task import Task
 
-from .evaluation import Guard, evaluate_episode
+from .evaluation import Guard, evaluate_episodes
 
 __all__ = ["merge_duplicates", "simplify"]
 
@@ -97,8 +96,7 @@ def simplify(
         except Exception:
             return task.worst, 0.0
         with Guard(time_limit) as guard:
-            scores = [evaluate_episode(task, compiled, rng, guard)[0]
-                      for rng in trial_rngs(seed, trials)]
+            scores = [f for f, _ in evaluate_episodes(task, compiled, seed, trials, guard)]
         return float(sum(scores) / len(scores)), sum(map(task.solved, scores)) / len(scores)
 
     def no_worse(a: tuple[float, float], b: tuple[float, float]) -> bool:

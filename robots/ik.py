@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import enum
 import math
+import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -166,7 +167,7 @@ class IKSolver:
         self.rng = np.random.default_rng(self.seed)
         self._fid = self.chain.tool_frame_id(self.arm)
         self._model = self.chain.model
-        self._data = self._model.createData()
+        self._local = threading.local()  # per thread: Pinocchio data, configuration
         self._has_planar = self.chain.has_base
         self._sample_low = np.where(
             np.isfinite(self.chain.lower_limits), self.chain.lower_limits, -np.pi
@@ -175,7 +176,6 @@ class IKSolver:
             np.isfinite(self.chain.upper_limits), self.chain.upper_limits, np.pi
         )
         self._reach = _ReachBound.build(self.chain, self.arm)
-        self._q = pin.neutral(self._model)
         self._scalar_q, self._scalar_v = self.chain._scalar_q, self.chain._scalar_v
         self._unbounded_q, self._unbounded_v = self.chain._unbounded_q, self.chain._unbounded_v
         prismatic = np.array([n == TORSO_JOINT for n in self.chain.coordinate_names], dtype=bool)
@@ -191,11 +191,20 @@ class IKSolver:
             finite, 0.5 * (np.where(finite, low, 0.0) + np.where(finite, high, 0.0)), 0.0
         )
 
-    def _load_q(self, theta: FloatArray) -> FloatArray:
-        """Fill the preallocated Pinocchio configuration from chain coordinates."""
+    def _work(self) -> tuple[pin.Data, FloatArray]:
+        """This thread's Pinocchio data and configuration vector: threads sharing a solver
+        (a skill thread left running past its state's time limit, say) never share them."""
+        local = self._local
+        try:
+            return local.work
+        except AttributeError:
+            local.work = (self._model.createData(), pin.neutral(self._model))
+            return local.work
+
+    def _load_q(self, theta: FloatArray, q: FloatArray) -> FloatArray:
+        """Fill this thread's Pinocchio configuration ``q`` from chain coordinates."""
         if self._has_planar:
             return self.chain.q_from_coordinates(theta)
-        q = self._q
         q[self._scalar_q] = theta[self._scalar_v]
         angles = theta[self._unbounded_v]
         q[self._unbounded_q] = np.cos(angles)
@@ -212,8 +221,9 @@ class IKSolver:
         Jacobian ``Jlog6 @ J_local`` (a step ``d`` with ``jac @ d = err`` reaches the goal
         to first order). Position targets: world position error, world-axes Jacobian.
         """
-        model, data, fid = self._model, self._data, self._fid
-        pin.computeJointJacobians(model, data, self._load_q(theta))
+        model, fid = self._model, self._fid
+        data, q = self._work()
+        pin.computeJointJacobians(model, data, self._load_q(theta, q))
         placement = pin.updateFramePlacement(model, data, fid)
         if goal is None:
             jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
@@ -329,6 +339,7 @@ class IKSolver:
         time_budget_s: float | None = None,
         diagnose: bool = True,
         max_restarts: int | None = None,
+        rng: np.random.Generator | None = None,
     ) -> IKResult:
         """Solve for the chain coordinates that put the tool frame on ``target``.
 
@@ -342,7 +353,11 @@ class IKSolver:
                 from ``unreachable``.
             max_restarts: stop after this many restarts; with a generous time budget
                 this makes the answer independent of the machine's speed.
+            rng: the generator of this call's restarts, so that callers sharing a solver
+                (threads included) never share its draws; by default the solver's own
+                (``rng``, seeded from ``seed``).
         """
+        draws = self.rng if rng is None else rng
         start = time.perf_counter()
         budget = self.time_budget_s if time_budget_s is None else time_budget_s
         deadline = start + budget
@@ -392,7 +407,7 @@ class IKSolver:
             ):
                 break
             restarts += 1
-            theta = np.where(free, self._restart(seed_theta, restarts), theta)
+            theta = np.where(free, self._restart(seed_theta, restarts, draws), theta)
             if chain.has_base:
                 theta[:3] = np.where(free[:3], best[1][:3], theta[:3])
 
@@ -400,7 +415,7 @@ class IKSolver:
         _, theta, err = best
         if saw_collision:
             status, why = IKStatus.COLLISION, "every solution found collides with the scene"
-        elif diagnose and self._solvable_without_limits(target, theta, free):
+        elif diagnose and self._solvable_without_limits(target, theta, free, draws):
             status, why = IKStatus.JOINT_LIMITS, "solutions exist only outside the joint limits"
         elif diagnose:
             status, why = IKStatus.UNREACHABLE, "no solution found even without joint limits"
@@ -428,17 +443,19 @@ class IKSolver:
             else:
                 moved[first], moved[flex], moved[last] = rolled[0], -value, rolled[1]
 
-    def _restart(self, seed_theta: FloatArray, restart: int) -> FloatArray:
+    def _restart(
+        self, seed_theta: FloatArray, restart: int, rng: np.random.Generator
+    ) -> FloatArray:
         """Restart coordinates: odd restarts uniform inside the limits, even ones
         near the seed (Gaussian, ``restart_spread`` of each range, clipped)."""
         if restart % 2 == 1 or self.restart_spread <= 0.0:
-            return self.rng.uniform(self._sample_low, self._sample_high)
+            return rng.uniform(self._sample_low, self._sample_high)
         spread = self.restart_spread * (self._sample_high - self._sample_low)
-        near = seed_theta + spread * self.rng.standard_normal(seed_theta.shape[0])
+        near = seed_theta + spread * rng.standard_normal(seed_theta.shape[0])
         return np.clip(near, self._sample_low, self._sample_high)
 
     def _solvable_without_limits(
-        self, target: IKTarget, theta: FloatArray, free: FloatArray
+        self, target: IKTarget, theta: FloatArray, free: FloatArray, rng: np.random.Generator
     ) -> bool:
         inf = np.full_like(theta, np.inf)
         low = np.where(free, -inf, theta)
@@ -449,7 +466,7 @@ class IKSolver:
             start = (
                 theta
                 if attempt == 0
-                else np.where(free, self.rng.uniform(self._sample_low, self._sample_high), theta)
+                else np.where(free, rng.uniform(self._sample_low, self._sample_high), theta)
             )
             _, _, _, ok = self._attempt(start, target, goal, free, low, high, deadline)
             if ok:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import importlib.metadata
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -113,7 +114,7 @@ class KinematicChain:
     upper_limits: FloatArray
     continuous: NDArray[np.bool_]
     arms: tuple[Arm, ...]
-    data: pin.Data = field(init=False, repr=False)
+    _local: threading.local = field(init=False, repr=False, compare=False)
     _joint_kinds: list[tuple[str, int, int]] = field(init=False, repr=False)
     _scalar_q: NDArray[np.intp] = field(init=False, repr=False)
     _scalar_v: NDArray[np.intp] = field(init=False, repr=False)
@@ -122,7 +123,7 @@ class KinematicChain:
     _planar: list[tuple[int, int]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self.data = self.model.createData()
+        self._local = threading.local()
         kinds: list[tuple[str, int, int]] = []
         for jid in range(1, self.model.njoints):
             joint = self.model.joints[jid]
@@ -185,6 +186,16 @@ class KinematicChain:
                 f"({', '.join(self.coordinate_names)}), got shape {theta.shape}: {theta}"
             )
         return theta
+
+    @property
+    def data(self) -> pin.Data:
+        """This thread's Pinocchio work data for ``model``: threads sharing a chain (a skill
+        thread left running past its state's time limit, say) never share it."""
+        try:
+            data: pin.Data = self._local.data
+        except AttributeError:
+            data = self._local.data = self.model.createData()
+        return data
 
     def q_from_coordinates(self, coordinates: FloatArray) -> FloatArray:
         """Pinocchio configuration vector ``q`` from joint coordinates [m, rad]."""

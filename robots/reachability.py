@@ -86,13 +86,13 @@ class ReachabilityOracle:
         target = IKTarget(np.array([x, y, z]), grasp_rotation(np.arctan2(y, x)))
         out = []
         for k, solver in enumerate(self.solvers.values()):
-            solver.rng = np.random.default_rng([self.seed, query_index, k])
             result = solver.solve(
                 target,
                 fixed={TORSO_JOINT: torso_height_m},
                 time_budget_s=10.0,
                 max_restarts=_IK_RESTARTS,
                 diagnose=False,
+                rng=np.random.default_rng([self.seed, query_index, k]),
             )
             out.append(result.success)
         return out[0], out[1]

@@ -48,7 +48,7 @@ from .nested import FSASkill, fsa_skill
 from .params import Choice, Param, ParamSpec
 from .registry import Registry
 from .skill import Skill, SkillSpec, skill
-from .task import Task, TaskError, TaskRef, load_task
+from .task import Task, TaskError, TaskRef, Trial, load_task, trials
 from .ticking import RUNNING, Activation, FSARun, run_ticking
 
 __version__ = "0.1.0"
@@ -91,6 +91,7 @@ __all__ = [
     "TaskError",
     "TaskRef",
     "TraceStep",
+    "Trial",
     "UndeclaredOutcomeError",
     "UnknownSkillError",
     "__version__",
@@ -108,4 +109,5 @@ __all__ = [
     "summarize",
     "trial_rngs",
     "trial_seeds",
+    "trials",
 ]

@@ -159,11 +159,8 @@ class Blackboard:
         return dict(self._types)
 
     # -- snapshots and diffs ---------------------------------------------------------------
-    def snapshot(self) -> dict[str, Any]:
-        """A shallow copy of the contents (values are shared, not copied)."""
-        return dict(self._data)
-
     def to_dict(self) -> dict[str, Any]:
+        """A shallow copy of the contents (values are shared, not copied)."""
         return dict(self._data)
 
     def start_log(self) -> None:
@@ -173,7 +170,7 @@ class Blackboard:
     def take_log(self) -> dict[str, tuple[Any, Any]]:
         """The changes since :meth:`start_log` or the last call: ``{key: (old, new)}``."""
         log = self._log
-        if log is None:
+        if not log:
             return {}
         self._log = []
         out: dict[str, tuple[Any, Any]] = {}

@@ -29,13 +29,13 @@ import py_trees
 from py_trees.common import Access as TreeAccess
 from py_trees.common import Status
 
+from .activation import RUNNING, Starter
 from .blackboard import DELETED, Blackboard
 from .errors import SkillcomposeError, SkillProtocolError
-from .executor import CompiledFSA, RunResult, compile_fsa
+from .executor import CompiledFSA, FSARun, RunResult, compile_fsa
 from .fsa import FSA, RESERVED_OUTCOMES, State
 from .registry import Registry
 from .skill import Skill, SkillSpec
-from .ticking import RUNNING, FSARun, Starter
 
 __all__ = [
     "BlackboardBridge",
@@ -206,7 +206,7 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
         )
         reads: set[str] = set()
         writes: set[str] = set()
-        for impl, _ in compiled._impls:
+        for impl, _ in compiled.impls:
             reads |= impl.spec.reads
             writes |= impl.spec.writes
         ident = compiled.fsa.name or label.replace(" ", "_")
@@ -372,12 +372,12 @@ class TreeSkill(Skill):
     """A py_trees subtree as a skill: ``success`` / ``failure`` from its final status."""
 
     __slots__ = ("_setup", "bridge", "factory", "tree")
+    kind = "tree"
 
     def __init__(
         self, spec: SkillSpec, source: TreeSource, bridge: BlackboardBridge
     ) -> None:
         super().__init__(spec, source, backend="default")
-        self.kind = "tree"
         if isinstance(source, py_trees.behaviour.Behaviour):
             self.tree: py_trees.behaviour.Behaviour | None = source
             self.factory: Callable[[], py_trees.behaviour.Behaviour] | None = None

@@ -18,13 +18,13 @@ from typing import Any, NoReturn
 import numpy as np
 
 from .arguments import MAX_TRIALS, UsageError, module_or_file, output_file, seed, setting, whole
-from .blackboard import DELETED, Blackboard
+from .blackboard import DELETED
 from .errors import SkillcomposeError
-from .executor import compile_fsa, error_summary, summarize, trial_rngs
+from .executor import compile_fsa, error_summary, summarize
 from .fsafile import load_fsa
 from .progress import progress_bar
 from .registry import Registry
-from .task import Task, load_task, parse_settings
+from .task import Task, load_task, parse_settings, trials
 
 __all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
 
@@ -206,16 +206,18 @@ def cmd_run(args: argparse.Namespace) -> int:
     results = []
     fitness: list[float] = []
     bar = progress_bar(args.trials, "run")  # on a terminal, once it takes a while
-    for k, rng in enumerate(trial_rngs(args.seed, args.trials)):
+    options: dict[str, Any] = {"trace_first": args.trace, "propagate": args.propagate}
+    loop = task.each_trial(compiled, args.seed, args.trials, **options) if task is not None \
+        else trials(compiled, args.seed, args.trials, **options)
+    for trial in loop:
         bar.update(1)
-        bb = task.setup(rng) if task is not None else Blackboard()
-        result = compiled.run(bb, rng, trace=args.trace and k == 0, propagate=args.propagate)
+        result = trial.result
         results.append(result)
         if task is not None:
-            fitness.append(task.score(result, bb))
+            fitness.append(trial.fitness)
         if result.trace is not None:
             _print_trace(result)
-        if result.error is not None and args.trace and k == 0:
+        if result.error is not None and args.trace and trial.number == 0:
             print(f"state {result.last_state} raised:", file=sys.stderr)
             traceback.print_exception(result.error, file=sys.stderr)
     bar.close()

@@ -14,11 +14,11 @@ compiling and loading do for you.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import FSAValidationError, ParamError, Problem, UnknownSkillError
@@ -65,12 +65,15 @@ class State:
 
 @dataclass(frozen=True)
 class Source:
-    """Where an FSA was read from, to point errors at lines and to save edits in place."""
+    """Where an FSA came from, in plain data: the file's path and the positions of its keys
+    (errors point at lines), its text (a writer that keeps the file's comments and layout
+    reads it again), and the states renamed since (old name -> new), so that such a writer
+    tells a renamed state from a new one."""
 
     path: str | None
     positions: Mapping[tuple[str, ...], tuple[int, int]] = field(default_factory=dict)
-    document: Any = None  # the round-trip YAML document (comments, order, formatting)
-    renames: Mapping[str, str] = field(default_factory=dict)  # old state name -> new
+    text: str | None = None
+    renames: Mapping[str, str] = field(default_factory=dict)
 
     def where(self, *keys: str) -> tuple[int | None, int | None]:
         """1-based (line, column) of the deepest known key on the path ``keys``."""
@@ -343,16 +346,7 @@ class FSA:
 
 
 def _fix_target(target: str, states: list[str], terminals: tuple[str, ...]) -> str:
-    import difflib
-
     close = difflib.get_close_matches(str(target), states + list(terminals), n=1)
     if close:
         return f"did you mean {close[0]!r}?"
     return f"use a state name or one of {list(terminals)}"
-
-
-def load(path: str | Path) -> FSA:
-    """Shorthand for :func:`skillcompose.fsafile.load_fsa`."""
-    from .fsafile import load_fsa
-
-    return load_fsa(path)

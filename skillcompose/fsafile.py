@@ -38,12 +38,11 @@ with its file, line and column, the state and key, what was expected and the fix
 
 from __future__ import annotations
 
-import copy
 import io
 import math
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -554,7 +553,7 @@ class _Reader:
         assert root is not None
         self.check_tree(root, yaml.constructor)
         self.raise_if_problems()
-        return self.read_format(root, yaml.constructor)
+        return self.read_format(root)
 
     def compose(self) -> tuple[YAML, Node | None]:
         """Parse the text once into a node tree, within the format's limits."""
@@ -599,7 +598,7 @@ class _Reader:
         self.problems.extend(parser.problems)
         return yaml, root
 
-    def read_format(self, root: Node, constructor: Any) -> FSA:
+    def read_format(self, root: Node) -> FSA:
         top = self.mapping(root, "the top level", TOP_LEVEL_KEYS,
                            fix="an FSA file is a mapping with format, start and states")
         self.raise_if_problems()
@@ -657,13 +656,7 @@ class _Reader:
         if "states" in top:
             states = self.read_states(*top["states"])
         self.raise_if_problems()
-        try:  # the same parse, now built as the round-trip document the writer edits
-            document = constructor.construct_document(root)
-        except Exception as exc:  # checked above; a YAML library change must not leak
-            mark = getattr(exc, "problem_mark", None) or root.start_mark
-            raise FSAFileError([_mark_problem(mark, f"cannot read this value: {exc}")],
-                               self.path) from None
-        source = Source(self.path, dict(self.positions), document)
+        source = Source(self.path, dict(self.positions), self.text)
         try:
             return FSA(states, start, terminals, step_limit, name, meta, source)
         except FSAValidationError as exc:
@@ -781,15 +774,40 @@ def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None 
 
     With a ``registry``, parameters of new states carry their unit and range as comments.
     """
-    doc = fsa.source.document if fsa.source is not None else None
-    if isinstance(doc, CommentedMap):
-        doc = copy.deepcopy(doc)  # the loaded FSA keeps its own document untouched
-        _sync_document(doc, fsa, registry, fsa.source.renames if fsa.source else {})
+    source = fsa.source
+    doc = _document(source.text) if source is not None and source.text is not None else None
+    if isinstance(doc, CommentedMap) and source is not None:
+        _sync_document(doc, fsa, registry, source.renames)
     else:
         doc = _new_document(fsa, registry, header)
-    yaml = _yaml_out()
+    return _dump(doc)
+
+
+def in_layout_of(fsa: FSA, seed: FSA, keep: Collection[str], header: str) -> FSA:
+    """``fsa``, to be written in the layout of the file ``seed`` was read from: its states
+    named in ``keep`` keep their text and comments there, the others are written afresh,
+    and the file starts with the comment ``header``. ``fsa`` itself if ``seed`` has no file.
+    """
+    source = seed.source
+    doc = _document(source.text) if source is not None and source.text is not None else None
+    if not isinstance(doc, CommentedMap):
+        return fsa
+    kept = doc.get("states")
+    if isinstance(kept, CommentedMap):
+        for gone in [k for k in kept if k not in keep]:
+            del kept[gone]
+    doc.yaml_set_start_comment(header)
+    return fsa.replace(source=Source(None, {}, _dump(doc)))
+
+
+def _document(text: str) -> Any:
+    """The round-trip document (comments, order, formatting) of a text this module read."""
+    return YAML(typ="rt").load(text)
+
+
+def _dump(doc: Any) -> str:
     buf = io.StringIO()
-    yaml.dump(doc, buf)
+    _yaml_out().dump(doc, buf)
     return buf.getvalue()
 
 

@@ -7,27 +7,28 @@ registry it was registered in, so swapping a backend swaps it inside the nested 
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .activation import Starter
 from .blackboard import Blackboard
 from .errors import RegistryError
+from .executor import CompiledFSA, FSARun, compile_fsa
 from .fsa import FSA, TIMEOUT
 from .skill import Skill, SkillFn, SkillSpec
 
 if TYPE_CHECKING:
-    from .executor import CompiledFSA
     from .registry import Registry
 
 __all__ = ["FSASkill", "fsa_skill"]
 
 
 class FSASkill(Skill):
-    """A skill whose implementation is an FSA."""
+    """A skill whose implementation is an FSA: long-running, ticked state by state."""
 
     __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
+    kind = "fsa"
 
     def __init__(
         self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str
@@ -38,16 +39,32 @@ class FSASkill(Skill):
         self.timeout_outcome = timeout_outcome
         self._compiled: dict[str, CompiledFSA] = {}
 
-    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
-        from .executor import compile_fsa
+    @property
+    def long_running(self) -> bool:
+        return True
 
+    def compiled(self, backend: str | None = None) -> CompiledFSA:
+        """The nested FSA compiled for ``backend`` (once per backend)."""
         be = backend or self.registry.backend
         child = self._compiled.get(be)
         if child is None:
             child = compile_fsa(self.fsa, self.registry, be)
             self._compiled[be] = child
+        return child
+
+    def starter(self, backend: str | None = None) -> Starter:
+        child = self.compiled(backend)
         timeout_outcome = self.timeout_outcome
-        run = child.outcome
+
+        def start_nested(bb: Blackboard, rng: np.random.Generator) -> _NestedActivation:
+            return _NestedActivation(FSARun(child, bb, rng, propagate=True), timeout_outcome)
+
+        return start_nested
+
+    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
+        """Run-to-completion form: the nested FSA run in one call."""
+        run = self.compiled(backend).outcome
+        timeout_outcome = self.timeout_outcome
 
         def run_nested(bb: Blackboard, rng: np.random.Generator) -> str:
             outcome, _ = run(bb, rng)
@@ -57,18 +74,33 @@ class FSASkill(Skill):
         return run_nested
 
 
+class _NestedActivation:
+    """A nested FSA ticked state by state; cancelling it preempts the child run."""
+
+    __slots__ = ("run", "timeout_outcome")
+
+    def __init__(self, run: FSARun, timeout_outcome: str) -> None:
+        self.run = run
+        self.timeout_outcome = timeout_outcome
+
+    def tick(self) -> str:
+        out = self.run.tick()
+        if out == TIMEOUT and self.run.done:
+            return self.timeout_outcome
+        return out
+
+    def cancel(self) -> None:
+        self.run.preempt()
+
+
 def fsa_skill(
-    fsa: FSA | str | Path,
+    fsa: FSA,
     registry: Registry,
     *,
     name: str | None = None,
     on_timeout: str | None = None,
 ) -> FSASkill:
     """Make a skill of ``fsa`` whose states' skills come from ``registry``."""
-    if not isinstance(fsa, FSA):
-        from .fsafile import load_fsa
-
-        fsa = load_fsa(fsa)
     skill_name = name or fsa.name
     if not skill_name or not skill_name.isidentifier():
         raise RegistryError(

@@ -2,8 +2,9 @@
 
 A :class:`Registry` is an instance; nothing registers itself globally. One skill name may
 have several implementations, one per *backend* (``"sim"``, ``"kinematic"``...), all with the
-same outcomes and parameters. An FSA file names skills only; the caller picks the backend
-when it compiles or runs the FSA, so one file runs on any backend.
+same outcomes and parameters (ranges, units, scales, defaults). An FSA file names skills
+only; the caller picks the backend when it compiles or runs the FSA, so one file runs on any
+backend and means the same on each.
 
 Skills are collected from Python modules (a dotted name or a ``.py`` path): a module either
 defines ``register(registry)`` or has its :class:`~skillcompose.skill.Skill` objects picked
@@ -13,6 +14,7 @@ entry-point group.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.util
 import os
@@ -22,13 +24,12 @@ from collections.abc import Iterable, Iterator
 from importlib import metadata
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING
 
 from .errors import RegistryError, UnknownSkillError
+from .fsa import FSA
+from .fsafile import load_fsa
+from .nested import fsa_skill
 from .skill import Skill, SkillSpec
-
-if TYPE_CHECKING:
-    from .fsa import FSA
 
 __all__ = ["DEFAULT_BACKEND", "ENTRY_POINT_GROUP", "Registry"]
 
@@ -81,9 +82,9 @@ class Registry:
         and random generator. ``on_timeout`` names the outcome its timeout maps to (default:
         ``"failure"`` when that is a terminal, else a ``timeout`` outcome is added).
         """
-        from .nested import fsa_skill
-
-        s = fsa_skill(fsa, self, name=name, on_timeout=on_timeout)
+        s = fsa_skill(
+            fsa if isinstance(fsa, FSA) else load_fsa(fsa), self, name=name, on_timeout=on_timeout
+        )
         return self.add(s)
 
     def load_module(self, target: str | ModuleType) -> list[Skill]:
@@ -184,8 +185,6 @@ class Registry:
             raise UnknownSkillError(self.unknown_message(name)) from None
 
     def unknown_message(self, name: str) -> str:
-        import difflib
-
         close = difflib.get_close_matches(name, list(self._impls), n=3)
         hint = f"; did you mean {' or '.join(close)}?" if close else ""
         known = ", ".join(sorted(self._impls)) or "none (load skills with --skills MODULE)"
@@ -196,7 +195,10 @@ class Registry:
 
 
 def _sig(spec: SkillSpec) -> list[str]:
-    return [f"{p.name}: {p.describe_range()}" for p in spec.params]
+    return [
+        f"{p.name}: {p.describe_range()}{', log scale' if p.scale == 'log' else ''}, "
+        f"default {p.default!r}" for p in spec.params
+    ]
 
 
 def import_target(target: str) -> ModuleType:

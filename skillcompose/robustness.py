@@ -44,12 +44,13 @@ from typing import Any
 import numpy as np
 
 from .arguments import MAX_TRIALS, MAX_WORKERS, module_or_file, output_file, seed, setting, whole
+from .cli import check_backend
 from .errors import SkillcomposeError
 from .executor import compile_fsa
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 from .fsafile import load_fsa
 from .progress import progress_bar
-from .task import Task, TaskRef, parse_settings
+from .task import Task, TaskRef, load_task, parse_settings
 
 __all__ = [
     "MAX_SWEEP_POINTS",
@@ -220,12 +221,10 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
     steps = np.empty(n, dtype=np.int64)
     counts: dict[str, int] = {}
     solved = 0
-    setup, score, run, is_solved = task.setup, task.score, compiled.run, task.solved
-    for k in range(n):
-        rng = np.random.default_rng(np.random.SeedSequence(job.seed, spawn_key=(job.start + k,)))
-        bb = setup(rng)
-        result = run(bb, rng)
-        fit[k] = f = score(result, bb)
+    is_solved = task.solved
+    for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n,
+                                                          start=job.start)):
+        fit[k] = f
         solved += is_solved(f)
         steps[k] = result.steps
         counts[result.outcome] = counts.get(result.outcome, 0) + 1
@@ -449,9 +448,6 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     values = args.values if isinstance(args.values, list) else parse_values(args.values)
     settings = parse_settings(args.settings)
     if args.backend:
-        from .cli import check_backend
-        from .task import load_task
-
         check_backend(load_task(args.task, **settings).registry, args.backend)
     if args.setting in settings:
         raise RobustnessError(

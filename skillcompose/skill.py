@@ -15,8 +15,9 @@ A *long-running* skill (a grasp, a base move) is declared the same way, as eithe
   that yields ``"running"`` (or nothing) until it returns its outcome; cancelling it closes
   the generator, so its ``finally:`` blocks are its cancel hook.
 
-The tick-wise executor (:mod:`skillcompose.ticking`) ticks them; run-to-completion mode ticks
-them in a loop until they finish, so one FSA runs in both modes.
+The engine (:mod:`skillcompose.executor`) asks each skill how it starts (:meth:`Skill.starter`,
+:meth:`Skill.bind`, :meth:`Skill.cancel_hook`); subclasses (nested FSAs, py_trees subtrees)
+override these, so the engine never asks what kind a skill is.
 """
 
 from __future__ import annotations
@@ -33,20 +34,25 @@ from typing import Any, Literal, get_args, get_origin
 
 import numpy as np
 
+from .activation import RUNNING, Starter, driven, start_generator, start_instance
 from .blackboard import Access, Blackboard
-from .errors import ParamError, SkillDefinitionError
+from .errors import ParamError, SkillDefinitionError, UndeclaredOutcomeError
 from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
-from .ticking import RUNNING, Starter, driven, start_generator, start_instance
 
-__all__ = ["LONG_RUNNING_KINDS", "Skill", "SkillFn", "SkillSpec", "skill"]
+__all__ = [
+    "GeneratorSkill",
+    "InstanceSkill",
+    "Skill",
+    "SkillFn",
+    "SkillSpec",
+    "TickingSkill",
+    "skill",
+]
 
 SkillFn = Callable[..., str]
 """``f(bb, rng, **params) -> outcome``."""
 
 KeyDecl = Iterable[str] | Mapping[str, type | tuple[type, ...]]
-
-LONG_RUNNING_KINDS = ("ticking", "generator")
-"""Skill kinds the tick-wise executor ticks: start/tick/cancel classes and generators."""
 
 
 @dataclass(frozen=True)
@@ -100,32 +106,33 @@ class SkillSpec:
 
     def same_signature(self, other: SkillSpec) -> bool:
         """True when two implementations are interchangeable in an FSA file."""
-        return (
-            self.outcomes == other.outcomes
-            and [(p.name, p.kind, p.low, p.high, p.choices, p.size) for p in self.params]
-            == [(p.name, p.kind, p.low, p.high, p.choices, p.size) for p in other.params]
-        )
+        def sig(spec: SkillSpec) -> list[tuple[Any, ...]]:
+            return [(p.name, p.kind, p.low, p.high, p.choices, p.size, p.unit, p.scale,
+                     _plain(p.default)) for p in spec.params]
+
+        return self.outcomes == other.outcomes and sig(self) == sig(other)
 
 
 class Skill:
     """A declared skill: its :class:`SkillSpec`, its implementation and its backend label.
 
-    Calling a ``Skill`` runs it once with the blackboard's access limited to its declared
-    keys, which is handy in tests: ``move_to_object(bb, rng, approach=0.2)``.
+    This class is the function kind; each other kind (:class:`InstanceSkill`,
+    :class:`TickingSkill`, :class:`GeneratorSkill`, nested FSAs, py_trees subtrees) is a
+    subclass that says how it runs through :meth:`starter`, :meth:`bind` and
+    :meth:`cancel_hook`. Calling a ``Skill`` runs it once with the blackboard's access
+    limited to its declared keys, which is handy in tests: ``move_to_object(bb, rng,
+    approach=0.2)``.
     """
 
-    __slots__ = ("_instance", "backend", "impl", "is_class", "kind", "spec")
+    __slots__ = ("backend", "impl", "spec")
+    kind = "function"
+    """``function``, ``instance`` (callable class), ``ticking``, ``generator``, ..."""
+    is_class = False
 
-    def __init__(
-        self, spec: SkillSpec, impl: Any, *, backend: str = "default", is_class: bool = False
-    ) -> None:
+    def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         self.spec = spec
         self.impl = impl
         self.backend = backend
-        self.is_class = is_class
-        self.kind = _kind(impl, is_class)
-        """``function``, ``instance`` (callable class), ``ticking`` or ``generator``."""
-        self._instance: Any = None
 
     @property
     def name(self) -> str:
@@ -135,41 +142,29 @@ class Skill:
         """A copy labelled with another backend (same implementation, same subclass)."""
         twin = copy.copy(self)
         twin.backend = backend
-        twin._instance = None
         return twin
 
     @property
     def long_running(self) -> bool:
         """True for skills ticked until they finish (start/tick classes, generators)."""
-        return self.kind in LONG_RUNNING_KINDS
+        return False
 
     def starter(self, backend: str | None = None) -> Starter | None:
         """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
-        if self.kind == "ticking":
-            return functools.partial(start_instance, self.impl)
-        if self.kind == "generator":
-            return functools.partial(start_generator, self.impl, self.name)
+        return None
+
+    def cancel_hook(self, backend: str | None = None) -> Callable[[Blackboard], Any] | None:
+        """``cancel(bb)`` called when a state's time limit abandons this instant skill, if
+        it has one (long-running skills cancel through their activation)."""
         return None
 
     def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
-        """The callable the executor runs: the function, or the class's one instance.
-
-        A long-running skill binds to a function that ticks it until it finishes.
-        """
+        """The callable that runs the skill to completion: the function itself, or, for a
+        long-running skill, a function that ticks it until it finishes."""
         start = self.starter(backend)
         if start is not None:
             return driven(start)
-        if not self.is_class:
-            return typing.cast(SkillFn, self.impl)
-        if self._instance is None:
-            try:
-                self._instance = self.impl()
-            except Exception as exc:
-                raise SkillDefinitionError(
-                    f"skill {self.name}: creating its instance ({self.impl.__name__}()) "
-                    f"failed: {exc!r}"
-                ) from exc
-        return typing.cast(SkillFn, self._instance)
+        return typing.cast(SkillFn, self.impl)
 
     def __call__(
         self, bb: Blackboard, rng: np.random.Generator | int | None = None, **params: Any
@@ -185,8 +180,6 @@ class Skill:
         finally:
             bb._client = prev
         if out not in self.spec.outcomes:
-            from .errors import UndeclaredOutcomeError
-
             raise UndeclaredOutcomeError(
                 f"skill {self.name} returned {out!r}, which is not one of its declared "
                 f"outcomes {list(self.spec.outcomes)}"
@@ -197,15 +190,100 @@ class Skill:
         return f"<Skill {self.name} [{self.backend}] outcomes={list(self.spec.outcomes)}>"
 
 
+class InstanceSkill(Skill):
+    """A class with ``__call__``: one instance, made on first use, runs every activation."""
+
+    __slots__ = ("_instance",)
+    kind = "instance"
+    is_class = True
+
+    def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
+        super().__init__(spec, impl, backend=backend)
+        self._instance: Any = None
+
+    def with_backend(self, backend: str) -> Skill:
+        twin = typing.cast(InstanceSkill, super().with_backend(backend))
+        twin._instance = None
+        return twin
+
+    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
+        if self._instance is None:
+            try:
+                self._instance = self.impl()
+            except Exception as exc:
+                raise SkillDefinitionError(
+                    f"skill {self.name}: creating its instance ({self.impl.__name__}()) "
+                    f"failed: {exc!r}"
+                ) from exc
+        return typing.cast(SkillFn, self._instance)
+
+    def cancel_hook(self, backend: str | None = None) -> Callable[[Blackboard], Any] | None:
+        hook = getattr(self.bind(None, backend), "cancel", None)
+        return hook if callable(hook) else None
+
+
+class TickingSkill(Skill):
+    """A class with ``start`` / ``tick`` / ``cancel``: a fresh instance per activation."""
+
+    __slots__ = ()
+    kind = "ticking"
+    is_class = True
+
+    @property
+    def long_running(self) -> bool:
+        return True
+
+    def starter(self, backend: str | None = None) -> Starter:
+        return functools.partial(start_instance, self.impl)
+
+
+class GeneratorSkill(Skill):
+    """A generator function that yields ``"running"`` until it returns its outcome."""
+
+    __slots__ = ()
+    kind = "generator"
+
+    @property
+    def long_running(self) -> bool:
+        return True
+
+    def starter(self, backend: str | None = None) -> Starter:
+        return functools.partial(start_generator, self.impl, self.name)
+
+
+@typing.overload
 def skill(
-    fn: Any = None,
+    fn: Callable[..., Any],
     *,
     name: str | None = None,
     outcomes: Iterable[str] | None = None,
     reads: KeyDecl = (),
     writes: KeyDecl = (),
     backend: str = "default",
-) -> Any:
+) -> Skill: ...
+
+
+@typing.overload
+def skill(
+    fn: None = None,
+    *,
+    name: str | None = None,
+    outcomes: Iterable[str] | None = None,
+    reads: KeyDecl = (),
+    writes: KeyDecl = (),
+    backend: str = "default",
+) -> Callable[[Callable[..., Any]], Skill]: ...
+
+
+def skill(
+    fn: Callable[..., Any] | None = None,
+    *,
+    name: str | None = None,
+    outcomes: Iterable[str] | None = None,
+    reads: KeyDecl = (),
+    writes: KeyDecl = (),
+    backend: str = "default",
+) -> Skill | Callable[[Callable[..., Any]], Skill]:
     """Declare a skill.
 
     Use as ``@skill`` or ``@skill(reads=(...), writes=(...), outcomes=(...), name=...,
@@ -224,7 +302,7 @@ def skill(
       may hold one implementation per backend under the same name.
     """
 
-    def wrap(obj: Any) -> Skill:
+    def wrap(obj: Callable[..., Any]) -> Skill:
         return _make_skill(obj, name, outcomes, reads, writes, backend)
 
     if fn is not None:
@@ -398,19 +476,21 @@ def _make_skill(
         key_types={**rt, **wt},
         doc=inspect.cleandoc(obj.__doc__ or ""),
     )
-    return Skill(spec, obj, backend=backend, is_class=is_class)
+    kind: type[Skill] = Skill
+    if is_class:
+        kind = TickingSkill if outcome_source is not None else InstanceSkill
+    elif inspect.isgeneratorfunction(obj):
+        kind = GeneratorSkill
+    return kind(spec, obj, backend=backend)
+
+
+def _plain(value: Any) -> Any:
+    """A parameter default in a form that compares by value (vectors as tuples)."""
+    return tuple(np.asarray(value).ravel().tolist()) if isinstance(value, np.ndarray) else value
 
 
 def _is_ticking_class(cls: type) -> bool:
     return callable(getattr(cls, "tick", None))
-
-
-def _kind(impl: Any, is_class: bool) -> str:
-    if is_class:
-        return "ticking" if _is_ticking_class(impl) else "instance"
-    if inspect.isgeneratorfunction(impl):
-        return "generator"
-    return "function"
 
 
 def _annotations(func: Any) -> dict[str, Any]:

@@ -9,9 +9,10 @@ settings alone (:class:`TaskRef`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -21,7 +22,7 @@ from .executor import CompiledFSA, RunResult, compile_fsa, trial_rngs
 from .fsa import DEFAULT_TERMINALS, ERROR, FSA
 from .registry import Registry, describe_exception, import_target
 
-__all__ = ["Task", "TaskError", "TaskRef", "load_task"]
+__all__ = ["Task", "TaskError", "TaskRef", "Trial", "load_task", "trials"]
 
 Fitness = Callable[[str, Blackboard, int], float]
 """``fitness(outcome, blackboard, steps) -> float``."""
@@ -29,6 +30,61 @@ Fitness = Callable[[str, Blackboard, int], float]
 
 class TaskError(SkillcomposeError):
     """A task module or its settings are unusable."""
+
+
+class Trial(NamedTuple):
+    """One trial of :func:`trials`: its number, how the run ended, its world's blackboard
+    (``None`` when setting it up raised) and its fitness (``nan`` without a score)."""
+
+    number: int
+    result: RunResult
+    blackboard: Blackboard | None
+    fitness: float
+
+
+def trials(
+    compiled: CompiledFSA,
+    seed: int | np.random.SeedSequence | None,
+    count: int,
+    *,
+    setup: Callable[[np.random.Generator], Blackboard] | None = None,
+    score: Callable[[RunResult, Blackboard], float] | None = None,
+    start: int = 0,
+    trace_first: bool = False,
+    propagate: bool = False,
+    catch: Callable[[BaseException], bool] | None = None,
+    worst: float = math.nan,
+    each: Callable[[], AbstractContextManager[Any]] | None = None,
+) -> Iterator[Trial]:
+    """The trial loop that runs, evaluations, simplification and sweeps share.
+
+    Trial ``k`` (``start`` to ``start + count - 1``) draws its generator from the ``k``-th
+    child of ``seed`` (:func:`~skillcompose.executor.trial_seeds`), sets up its world with it
+    (``setup``; default: an empty blackboard), runs ``compiled`` on that world with the same
+    generator, and scores it (``score``). The numbers drawn depend on ``seed`` and ``k``
+    only, so a range of trials run alone gives the same trials as the whole loop.
+
+    - ``trace_first``: trace the run of trial ``start``; ``propagate``: as in
+      :meth:`CompiledFSA.run`.
+    - ``catch``: an exception of setup, run or score for which ``catch(exc)`` is true ends
+      that trial in ``error`` with fitness ``worst`` (the exception is the result's
+      ``error``); any other leaves the loop.
+    - ``each``: a context manager entered around each trial (a time limit, say).
+    """
+    for k, rng in enumerate(trial_rngs(seed, count, start), start):
+        bb: Blackboard | None = None
+        try:
+            with each() if each is not None else nullcontext():
+                bb = setup(rng) if setup is not None else Blackboard()
+                result = compiled.run(bb, rng, trace=trace_first and k == start,
+                                      propagate=propagate)
+                fitness = score(result, bb) if score is not None else math.nan
+        except BaseException as exc:
+            if catch is None or not catch(exc):
+                raise
+            yield Trial(k, RunResult(ERROR, 0, None, None, exc), bb, worst)
+            continue
+        yield Trial(k, result, bb, fitness)
 
 
 @dataclass(frozen=True)
@@ -87,10 +143,6 @@ class Task:
     def solved(self, fitness: float) -> bool:
         return fitness <= self.target if self.minimize else fitness >= self.target
 
-    def better(self, a: float, b: float) -> bool:
-        """True when fitness ``a`` is strictly better than ``b``."""
-        return a < b if self.minimize else a > b
-
     def compile(self, fsa: FSA, backend: str | None = None) -> CompiledFSA:
         """``fsa`` compiled for this task: its skills, its backend, and its step limit."""
         if fsa.step_limit != self.step_limit:
@@ -102,24 +154,31 @@ class Task:
             return self.worst
         return float(self.fitness(result.outcome, bb, result.steps))
 
+    def each_trial(
+        self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None,
+        trials: int | None = None, **options: Any,
+    ) -> Iterator[Trial]:
+        """:func:`trials` of this task: its worlds, its score, its worst fitness; ``trials``
+        defaults to the task's, ``options`` are :func:`trials`' keywords."""
+        return _trials(compiled, seed, self.trials if trials is None else trials,
+                       setup=self.setup, score=self.score, worst=self.worst, **options)
+
     def run_trials(
         self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None, trials: int
     ) -> list[tuple[RunResult, float]]:
         """Run ``trials`` fresh worlds from ``seed``; each result with its fitness."""
-        out = []
-        for rng in trial_rngs(seed, trials):
-            bb = self.setup(rng)
-            res = compiled.run(bb, rng)
-            out.append((res, self.score(res, bb)))
-        return out
+        return [(t.result, t.fitness) for t in self.each_trial(compiled, seed, trials)]
 
     def evaluate(
         self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None,
         trials: int | None = None,
     ) -> float:
         """Mean fitness over ``trials`` (default: the task's) worlds drawn from ``seed``."""
-        scores = [f for _, f in self.run_trials(compiled, seed, trials or self.trials)]
-        return float(np.mean(scores))
+        runs = self.each_trial(compiled, seed, trials or self.trials)
+        return float(np.mean([t.fitness for t in runs]))
+
+
+_trials = trials  # Task's field ``trials`` hides the function inside the class
 
 
 @dataclass(frozen=True)

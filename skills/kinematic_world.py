@@ -579,11 +579,10 @@ def reach(
                                 margin_m=COLLISION_MARGIN_M).collides
 
     fixed = None if move_torso else {TORSO_JOINT: torso_now}
-    solver = kin.solvers[arm]
-    solver.rng = np.random.default_rng(int(rng.integers(2**63)))
-    result = solver.solve(
+    result = kin.solvers[arm].solve(
         target, initial=state.coordinates(arm), fixed=fixed, collides=collides,
         time_budget_s=_IK_TIME_CAP_S, diagnose=False, max_restarts=restarts,
+        rng=np.random.default_rng(int(rng.integers(2**63))),
     )
     where = (f"{arm} arm to {_fmt(target_world.translation)} m "
              f"(rpy {_fmt(pin.rpy.matrixToRpy(target_world.rotation))} rad) in world")
@@ -599,11 +598,10 @@ def reach(
     if not diagnose:
         return Reach(arm, None, "unreachable",
                      f"{where}: no arm configuration found (IK: {result.status.value})")
-    free = kin.free_solvers[arm]
-    free.rng = np.random.default_rng(int(rng.integers(2**63)))
-    loose = free.solve(
+    loose = kin.free_solvers[arm].solve(
         target, initial=state.coordinates(arm), fixed=fixed, time_budget_s=_IK_TIME_CAP_S,
         diagnose=False, max_restarts=IK_DIAGNOSE_RESTARTS,
+        rng=np.random.default_rng(int(rng.integers(2**63))),
     )
     if loose.success:
         return Reach(arm, None, "joint_limits",

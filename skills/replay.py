@@ -91,8 +91,7 @@ def replay(
     status = RUNNING
     while status == RUNNING:
         status = run.tick()
-        result = run.result if run.done else None
-        trace = (result.trace if result is not None else run._trace()) or ()
+        trace = run.trace or ()
         if not trace:
             break
         last = trace[-1]

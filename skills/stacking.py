@@ -72,6 +72,7 @@ import numpy as np
 from robots.collision import Box
 from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
 from skillcompose.fsa import FSA, State
+from skillcompose.fsafile import load_fsa
 from skillcompose.nested import FSASkill, fsa_skill
 from skillcompose.skill import SkillFn, SkillSpec
 from skills import move_to_push as skills_push
@@ -463,7 +464,7 @@ def make_move_to_reach(
     """MoveToReach from an evolved move-to-push FSA file (``examples/move_to_reach.fsa.yaml``):
     validated against :func:`reach_registry` when loaded; its ``timeout`` becomes
     ``failure``."""
-    nested = fsa_skill(Path(path), reach_registry(topology, kinematic=kinematic),
+    nested = fsa_skill(load_fsa(path), reach_registry(topology, kinematic=kinematic),
                        name="MoveToReach", on_timeout="failure")
     return MoveToReach(nested)
 

@@ -10,6 +10,7 @@ from skillcompose import load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
 
 
+@pytest.mark.slow
 def test_evolve_edit_run_reseed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "run1"
     code = skillcompose_main([

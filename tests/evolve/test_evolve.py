@@ -192,8 +192,8 @@ def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
     bad = Genome({0: Node(s["Crash"], [], [-1])}, 0)
     jobs = [Job.of(g, 0, (1, 0, i), 1) for i, g in enumerate([good, good, bad, good])]
     serial = SerialEvaluator(task, skills)
-    for workers, per_worker in ((2, 2), (1, 1), (2, 1)):
-        ev = ProcessEvaluator(task, skills, workers=workers, chunks_per_worker=per_worker)
+    for workers in (2, 1):
+        ev = ProcessEvaluator(task, skills, workers=workers)
         try:
             out = ev.evaluate(jobs)
             # only the job that kills its worker is lost; its chunk-mates are re-run alone
@@ -210,6 +210,7 @@ def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
     assert result.generations == 2
 
 
+@pytest.mark.slow
 def test_the_pool_survives_many_deaths_in_one_batch() -> None:
     """Killers spread over a large batch (and a batch of nothing but killers): every worker
     that dies is replaced while the batch runs, what it finished is kept, and only the

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -155,3 +157,59 @@ def test_same_seed_same_answer(pr2: RobotModel) -> None:
     ]
     assert answers[0] is not None and answers[1] is not None
     np.testing.assert_array_equal(answers[0], answers[1])
+
+
+def test_a_generator_per_call_draws_as_the_solver_seeded_alike(pr2: RobotModel) -> None:
+    """``solve(rng=...)`` restarts from the given generator (the run's) and leaves the
+    solver's own alone: callers sharing one solver never share its draws."""
+    chain = pr2.chain("left_arm_torso")
+    goal = chain.transform_tool_to_world("left", chain.sample_coordinates(np.random.default_rng(9)))
+    target = IKTarget.from_transform(goal)
+    options = {"initial": np.zeros(8), "time_budget_s": 10.0, "max_restarts": 6,
+               "diagnose": True, "collides": lambda chain, theta: True}  # every restart runs
+    seeded = IKSolver(chain=chain, arm="left", seed=4).solve(target, **options)
+    shared = IKSolver(chain=chain, arm="left", seed=0)
+    own = shared.rng.bit_generator.state
+    given = shared.solve(target, rng=np.random.default_rng(4), **options)
+    assert shared.rng.bit_generator.state == own
+    assert seeded.coordinates is not None and given.coordinates is not None
+    np.testing.assert_array_equal(seeded.coordinates, given.coordinates)
+    assert (seeded.status, seeded.iterations, seeded.restarts) == \
+        (given.status, given.iterations, given.restarts)
+    assert (given.status, given.restarts) == (IKStatus.COLLISION, 6)
+    other = shared.solve(target, rng=np.random.default_rng(5), **options)
+    assert not np.array_equal(other.coordinates, given.coordinates)
+
+
+def test_threads_sharing_a_solver_get_the_serial_answers(pr2: RobotModel) -> None:
+    """Each thread has its own Pinocchio work data (solver and chain) and passes its own
+    generator, so threads solving on one solver at once answer as one thread does."""
+    chain = pr2.chain("right_arm_torso")
+    solver = IKSolver(chain=chain, arm="right", seed=0)
+    rng = np.random.default_rng(3)
+    targets = [IKTarget.from_transform(chain.transform_tool_to_world(
+        "right", chain.sample_coordinates(rng))) for _ in range(12)]
+
+    def answers(k: int) -> list[bytes]:
+        out = []
+        for i, target in enumerate(targets):
+            r = solver.solve(target, initial=np.zeros(8), time_budget_s=10.0, max_restarts=4,
+                             diagnose=False, rng=np.random.default_rng([k, i]))
+            out.append(b"" if r.coordinates is None else r.coordinates.tobytes())
+        return out
+
+    serial = [answers(k) for k in range(4)]
+    found: dict[int, list[bytes]] = {}
+    threads = [threading.Thread(target=lambda k=k: found.__setitem__(k, answers(k)))
+               for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert [found[k] for k in range(4)] == serial
+    assert chain.data is chain.data
+    other: list[object] = []
+    t = threading.Thread(target=lambda: other.append(chain.data))
+    t.start()
+    t.join()
+    assert other[0] is not chain.data

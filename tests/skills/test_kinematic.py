@@ -204,7 +204,10 @@ def test_place_base_then_reachable() -> None:
 
 
 def test_stacking_skills() -> None:
-    bb = Blackboard({"object_positions_world": {"a": (0.6, -0.15, 0.81), "b": (0.6, 0.15, 0.81)}})
+    positions = {"a": (0.6, -0.15, 0.81), "b": (0.6, 0.15, 0.81)}
+    bb = Blackboard({"object_positions_world": positions})
+    assert kn.grasp_param(bb, 0, which=1.0) == "failure" and reason(bb) == "not_recognised"
+    bb["object_locations_world"] = dict(positions)  # what RecogniseObject writes
     assert kn.grasp_param(bb, 0, which=1.0) == "success"
     assert bb["held_object_right"] == "a"
     assert kn.grasp_param(bb, 0, which=0.0) == "failure" and reason(bb) == "already_holding"
@@ -250,5 +253,5 @@ def test_same_seed_same_run() -> None:
     for _ in range(2):
         bb = setup(np.random.default_rng(0))
         compiled.run(bb, 5)
-        runs.append(bb.snapshot())
+        runs.append(bb.to_dict())
     assert runs[0] == runs[1]

@@ -15,7 +15,7 @@ from skillcompose import (
     skill,
 )
 from skillcompose.skill import camel_name
-from tests.core import demo_skills
+from tests.skillcompose import demo_skills
 
 
 def test_decorator_reads_declaration() -> None:

@@ -13,7 +13,7 @@ from skillcompose.task import load_task
 from skills import kinematic as kin
 from skills import stacking as st
 from skills import stacking_kinematic as stk
-from tests.stacking.test_stacking import FIRST, SECOND, recognised, world
+from tests.skills.test_stacking import FIRST, SECOND, recognised, world
 
 pytestmark = pytest.mark.kinematics
 EXAMPLES = Path(task_module.__file__).parent

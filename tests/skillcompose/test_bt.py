@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Literal
 
 import numpy as np
@@ -12,7 +13,26 @@ from py_trees.common import Status
 from skillcompose import FSA, Blackboard, Registry, State, compile_fsa, skill
 from skillcompose.bt import BridgeError, FSABehaviour, SkillBehaviour, tree_skill
 
-from .conftest import Calls, mixed_fsa
+from .mixed_skills import Calls, make_registry, mixed_fsa
+
+
+@pytest.fixture
+def calls() -> Calls:
+    return Calls()
+
+
+@pytest.fixture
+def registry(calls: Calls) -> Registry:
+    """The mixed skills (in place of the package conftest's demo registry)."""
+    return make_registry(calls)
+
+
+@pytest.fixture(autouse=True)
+def clean_py_trees_blackboard() -> Iterator[None]:
+    """py_trees' blackboard is process-global: start and end every test with it empty."""
+    py_trees.blackboard.Blackboard.clear()
+    yield
+    py_trees.blackboard.Blackboard.clear()
 
 
 def tick_until_done(root: py_trees.behaviour.Behaviour, limit: int = 100) -> int:

@@ -3,7 +3,7 @@ from __future__ import annotations
 import pytest
 
 from skillcompose import Registry
-from tests.core import demo_skills
+from tests.skillcompose import demo_skills
 
 
 @pytest.fixture

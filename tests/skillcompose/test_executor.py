@@ -15,6 +15,8 @@ from skillcompose import (
     compile_fsa,
     run_fsa,
 )
+from skillcompose.executor import trial_rngs
+from skillcompose.task import trials
 
 POUR = FSA(
     {
@@ -42,12 +44,41 @@ def test_same_seed_same_outcome_sequence(registry: Registry) -> None:
     c = compile_fsa(POUR.with_params("Move_2", p_fail=0.6).replace(step_limit=5), registry)
 
     def sequence(seed: int) -> list[tuple[str, int]]:
-        return [(r.outcome, r.steps) for r in c.run_many(None, seed, 200)]
+        return [(r.outcome, r.steps) for r in (c.run(None, rng) for rng in trial_rngs(seed, 200))]
 
     a, b, other = sequence(7), sequence(7), sequence(8)
     assert a == b
     assert a != other
     assert {o for o, _ in a} == {"success", TIMEOUT}
+
+
+def test_one_trial_loop_in_parts_or_whole(registry: Registry) -> None:
+    """The trial loop gives trial k the same numbers whether it runs the whole range or a
+    part (as a robustness worker does), and the same as drawing them by hand."""
+    c = compile_fsa(POUR.with_params("Move_2", p_fail=0.6).replace(step_limit=5), registry)
+    whole = [(t.number, t.result.outcome, t.result.steps) for t in trials(c, 7, 30)]
+    parts = [(t.number, t.result.outcome, t.result.steps)
+             for start, stop in ((0, 11), (11, 12), (12, 30))
+             for t in trials(c, 7, stop - start, start=start)]
+    assert whole == parts
+    by_hand = [(k, *c.run(None, rng)[:2]) for k, rng in enumerate(trial_rngs(7, 30))]
+    assert whole == by_hand
+
+
+def test_trial_loop_catches_what_it_is_told_to(registry: Registry) -> None:
+    c = compile_fsa(POUR, registry)
+
+    def setup(rng: np.random.Generator) -> Blackboard:
+        if rng.random() < 0.5:
+            raise SystemExit("no world")
+        return Blackboard()
+
+    caught = list(trials(c, 0, 20, setup=setup, catch=lambda e: isinstance(e, SystemExit),
+                         worst=99.0, score=lambda r, bb: 1.0))
+    assert {(t.result.outcome, t.fitness) for t in caught} == {(ERROR, 99.0), ("success", 1.0)}
+    assert all(isinstance(t.result.error, SystemExit) for t in caught if t.fitness == 99.0)
+    with pytest.raises(SystemExit):
+        list(trials(c, 0, 20, setup=setup))
 
 
 def test_timeout_after_step_limit(registry: Registry) -> None:

@@ -24,7 +24,18 @@ from skillcompose import (
 from skillcompose.errors import SkillProtocolError
 from skillcompose.ticking import RUNNING, run_ticking
 
-from .conftest import Calls, as_skill, make_registry, mixed_fsa
+from .mixed_skills import Calls, as_skill, make_registry, mixed_fsa
+
+
+@pytest.fixture
+def calls() -> Calls:
+    return Calls()
+
+
+@pytest.fixture
+def registry(calls: Calls) -> Registry:
+    """The mixed skills (in place of the package conftest's demo registry)."""
+    return make_registry(calls)
 
 
 def test_decorator_reads_long_running_declarations(registry: Registry) -> None:

@@ -1,13 +1,12 @@
-"""Skills and FSAs shared by the behaviour-tree and tick-wise tests."""
+"""Skills and FSAs shared by the behaviour-tree and tick-wise tests (``test_bt``,
+``test_ticking``): instant, start/tick/cancel and generator skills in one registry."""
 
 from __future__ import annotations
 
-from collections.abc import Generator, Iterator
+from collections.abc import Generator
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import py_trees
-import pytest
 
 from skillcompose import FSA, Blackboard, Param, Registry, Skill, State, skill
 
@@ -87,21 +86,3 @@ def mixed_fsa(name: str = "mixed") -> FSA:
         },
         "A", step_limit=5, name=name,
     )
-
-
-@pytest.fixture
-def calls() -> Calls:
-    return Calls()
-
-
-@pytest.fixture
-def registry(calls: Calls) -> Registry:
-    return make_registry(calls)
-
-
-@pytest.fixture(autouse=True)
-def clean_py_trees_blackboard() -> Iterator[None]:
-    """py_trees' blackboard is process-global: start and end every test with it empty."""
-    py_trees.blackboard.Blackboard.clear()
-    yield
-    py_trees.blackboard.Blackboard.clear()

@@ -1,7 +1,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import pytest
@@ -9,14 +9,16 @@ import pytest
 from skillcompose import (
     FSA,
     Blackboard,
+    Param,
     Registry,
     RegistryError,
+    Skill,
     State,
     UnknownSkillError,
     compile_fsa,
     skill,
 )
-from tests.core import demo_skills
+from tests.skillcompose import demo_skills
 
 
 def _backend_pair() -> tuple[object, object]:
@@ -58,6 +60,39 @@ def test_backends_must_share_a_signature() -> None:
         reg.add(detect_real)
 
 
+@skill(name="Reach", backend="sim")
+def _reach_sim(bb: Blackboard, rng: np.random.Generator, *,
+               d: Annotated[float, Param(0.01, 1.0, unit="m")] = 0.5) -> Literal["success"]:
+    return "success"
+
+
+@skill(name="Reach", backend="cm")
+def _reach_cm(bb: Blackboard, rng: np.random.Generator, *,
+              d: Annotated[float, Param(0.01, 1.0, unit="cm")] = 0.5) -> Literal["success"]:
+    return "success"
+
+
+@skill(name="Reach", backend="log")
+def _reach_log(bb: Blackboard, rng: np.random.Generator, *,
+               d: Annotated[float, Param(0.01, 1.0, unit="m", scale="log")] = 0.5
+               ) -> Literal["success"]:
+    return "success"
+
+
+@skill(name="Reach", backend="default")
+def _reach_default(bb: Blackboard, rng: np.random.Generator, *,
+                   d: Annotated[float, Param(0.01, 1.0, unit="m")] = 0.25) -> Literal["success"]:
+    return "success"
+
+
+@pytest.mark.parametrize("twin", [_reach_cm, _reach_log, _reach_default],
+                         ids=["unit", "scale", "default"])
+def test_twins_cannot_differ_in_unit_scale_or_default(twin: Skill) -> None:
+    """One file must mean one thing on every backend."""
+    with pytest.raises(RegistryError, match="same signature"):
+        Registry([_reach_sim, twin])
+
+
 def test_unknown_skill_suggests() -> None:
     reg = Registry.from_modules([demo_skills])
     with pytest.raises(UnknownSkillError, match="did you mean MoveToObject"):
@@ -66,7 +101,7 @@ def test_unknown_skill_suggests() -> None:
 
 def test_load_by_dotted_name_and_by_path(tmp_path: Path) -> None:
     reg = Registry()
-    added = reg.load_module("tests.core.demo_skills")
+    added = reg.load_module("tests.skillcompose.demo_skills")
     assert "GraspObject" in reg and len(added) == len(reg)
     f = tmp_path / "my_skills.py"
     f.write_text(
@@ -116,7 +151,7 @@ def test_entry_points_group(monkeypatch: pytest.MonkeyPatch) -> None:
 
     import skillcompose.registry as registry_module
 
-    ep = metadata.EntryPoint("demo", "tests.core.demo_skills", "skillcompose.skills")
+    ep = metadata.EntryPoint("demo", "tests.skillcompose.demo_skills", "skillcompose.skills")
 
     def fake(group: str) -> list[metadata.EntryPoint]:
         return [ep] if group == "skillcompose.skills" else []

@@ -1,4 +1,4 @@
-"""Skills used by the core tests (and loadable with --skills tests.core.demo_skills)."""
+"""Skills used by the core tests (and loadable with --skills tests.skillcompose.demo_skills)."""
 
 from __future__ import annotations
 

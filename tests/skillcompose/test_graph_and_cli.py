@@ -65,7 +65,7 @@ def test_layers_go_left_to_right() -> None:
 def test_cli_run_validate_show_skills(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = save_fsa(LOOPY, tmp_path / "loopy.fsa.yaml").path
     assert path is not None
-    skills = ["--skills", "tests.core.demo_skills"]
+    skills = ["--skills", "tests.skillcompose.demo_skills"]
     assert main(["run", path, *skills, "--trials", "500", "--seed", "3"]) == 0
     out = capsys.readouterr().out
     assert "500 run(s), seed 3" in out and "success" in out and "timeout" in out
@@ -87,7 +87,7 @@ def test_cli_run_validate_show_skills(tmp_path: Path, capsys: pytest.CaptureFixt
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("format: 1\nstart: A\nstates:\n  A: {skill: Nope, transitions: {x: success}}\n")
-    assert main(["run", str(bad), "--skills", "tests.core.demo_skills"]) == 2
+    assert main(["run", str(bad), "--skills", "tests.skillcompose.demo_skills"]) == 2
     err = capsys.readouterr().err
     assert f"{bad}:4:14: state A: unknown skill 'Nope'; did you mean Noop?" in err
     assert "Traceback" not in err
@@ -100,14 +100,14 @@ def test_cli_reports_skill_errors(tmp_path: Path, capsys: pytest.CaptureFixture[
                  tmp_path / "x.yaml").path
     assert f is not None
     # every run ended in error: counted, the first shown with where it was raised, exit 1
-    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trials", "3"]) == 1
+    assert main(["run", f, "--skills", "tests.skillcompose.demo_skills", "--trials", "3"]) == 1
     captured = capsys.readouterr()
     assert "error" in captured.out
     assert ("3 run(s) ended in error; the first (run 0) in state X: RuntimeError: motor "
             "fault\n") in captured.err
     assert 'demo_skills.py", line 72, in explode' in captured.err
     assert "every run of" in captured.err
-    assert main(["run", f, "--skills", "tests.core.demo_skills", "--trace"]) == 1
+    assert main(["run", f, "--skills", "tests.skillcompose.demo_skills", "--trace"]) == 1
     assert "Traceback" in capsys.readouterr().err
 
 

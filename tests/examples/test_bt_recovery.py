@@ -2,10 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
+import py_trees
 import pytest
 from py_trees.common import Status
 
 from examples import bt_recovery
+
+
+@pytest.fixture(autouse=True)
+def clean_py_trees_blackboard() -> Iterator[None]:
+    """py_trees' blackboard is process-global: start and end every test with it empty."""
+    py_trees.blackboard.Blackboard.clear()
+    yield
+    py_trees.blackboard.Blackboard.clear()
 
 
 def test_main_prints_the_tree_with_the_fsa_inside(capsys: pytest.CaptureFixture[str]) -> None:
@@ -27,6 +38,6 @@ def test_failing_grasp_is_retried_then_recovered() -> None:
     assert status == Status.SUCCESS  # the recovery branch succeeded
     assert pick.activations == 2  # Retry ran the FSA twice
     assert pick.last_result is not None and pick.last_result.outcome == "failure"
-    storage = __import__("py_trees").blackboard.Blackboard.storage
+    storage = py_trees.blackboard.Blackboard.storage
     assert storage["/recovery/help"] is True and storage["/pick/attempts"] == 2
     assert storage["/pick/holding"] is False and not storage["/pick/hand"].any()  # reset

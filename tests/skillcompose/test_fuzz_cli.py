@@ -49,7 +49,7 @@ PATHS = [str(PLACES / "a_dir"), str(PLACES / "a_dir") + "/", str(PLACES / "a_fil
          str(PLACES / "hostile.yaml"), "-"]
 MODULES = [".name", "a..b", "os", "os.path", "examples", "examples.toy_task",
            "no_such_module_at_all", "examples.no_such", "skillcompose", "x y", "1abc",
-           str(PLACES / "a_file.txt"), str(PLACES / "a_dir"), "tests.core.demo_skills",
+           str(PLACES / "a_file.txt"), str(PLACES / "a_dir"), "tests.skillcompose.demo_skills",
            str(PLACES / "missing.py"), REFERENCE]
 WORDS = ["kinmatic", "sim", "default", "serial", "process", "ray", "p_fail", "p fail",
          "p_fail=0.1", "p_fail=nan", "p_fail=1e999", "=", "trials=0", "0:1:3", "0:1:0",

@@ -53,7 +53,7 @@ def test_typed_keys() -> None:
 
 def test_log_and_diff() -> None:
     bb = Blackboard({"a": 1})
-    before = bb.snapshot()
+    before = bb.to_dict()
     bb.start_log()
     bb["a"] = 2
     bb["a"] = 3
@@ -66,6 +66,6 @@ def test_log_and_diff() -> None:
     assert "c" not in log  # created and deleted within the step: no change
     bb["a"] = 3  # same value: not a change
     assert bb.take_log() == {}
-    d = diff(before, bb.snapshot())
+    d = diff(before, bb.to_dict())
     assert set(d) == {"a", "b"}
     assert d["a"] == (1, 3)

@@ -14,7 +14,7 @@ from skillcompose import (
     compile_fsa,
     save_fsa,
 )
-from tests.core import demo_skills
+from tests.skillcompose import demo_skills
 
 REACH = FSA(
     {

@@ -118,6 +118,7 @@ def fsas(draw: st.DrawFn) -> FSA:
                draw(st.integers(1, 500)), draw(st.sampled_from(["", "task_a"])), meta)
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(fsas())
 def test_random_fsas_survive_save_and_load(fsa: FSA) -> None:
@@ -265,3 +266,28 @@ def test_time_limit_in_a_file_stops_a_hanging_state(tmp_path: Path) -> None:
     assert run_ticking(compiled).outcome == "timeout" and time.perf_counter() - t0 < 2.0
     with pytest.raises(FSAFileError, match=r"hang\.yaml:6:17: state Hang: time_limit must"):
         loads_fsa(text.replace("0.2", "-1"), "hang.yaml")
+
+
+def test_a_loaded_fsa_holds_plain_data_only() -> None:
+    """The model is format-neutral: a loaded FSA (renamed, too) holds no YAML library
+    object; the writer reads the kept text again to keep the file's comments."""
+    path = Path(__file__).resolve().parents[2] / "examples" / "pour_water_reference.fsa.yaml"
+    fsa = load_fsa(path).rename_state("Recognise", "Look")
+
+    def modules(value: object) -> set[str]:
+        found = {type(value).__module__}
+        if isinstance(value, dict):
+            for k, v in value.items():
+                found |= modules(k) | modules(v)
+        elif isinstance(value, (list, tuple)):
+            for v in value:
+                found |= modules(v)
+        elif hasattr(value, "__dataclass_fields__"):
+            for name in value.__dataclass_fields__:
+                found |= modules(getattr(value, name))
+        return found
+
+    assert not any(m.startswith("ruamel") for m in modules(fsa))
+    assert fsa.source is not None and fsa.source.renames == {"Recognise": "Look"}
+    text = dumps_fsa(fsa)
+    assert "  Look:                     # store where the jug and the glass are" in text
