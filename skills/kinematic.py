@@ -104,7 +104,7 @@ from skills.pour_water import (
     Roll,
     Yaw,
 )
-from skills.stacking import StackDX, StackDY, StackDZ, Which
+from skills.stacking import StackDX, StackDY, StackDZ, Which, landing_z
 
 __all__ = [
     "BACKEND",
@@ -137,7 +137,6 @@ PLACE_BASE_CANDIDATES = 24
 """Base poses PlaceBase tries before it gives up."""
 _X_M, _Y_M, _Z_M = WORKSPACE_WORLD
 _PI = math.pi
-_TOUCH_M = 0.002  # a released object lands on a surface at most this far above its bottom
 _FLOOR_M = (-3.0, 3.0)  # base and pose targets: the paper's 5 m^2 room around the start
 
 _MOVE_READS = (*ROBOT_READS, *WORLD_READS)
@@ -698,17 +697,8 @@ def open_gripper(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]
         return "success"
     box = object_box(bb, name, centre)
     stack = bb.get("object_positions_world") or {}
-    surfaces = [0.0]
-    for other in (*scene_world(bb).boxes,
-                  *(object_box(bb, n, p) for n, p in stack.items() if n != name)):
-        footprint_overlap = all(
-            abs(box.center_m[i] - other.center_m[i])
-            < box.half_extents_m[i] + other.half_extents_m[i] for i in (0, 1)
-        )
-        top = other.center_m[2] + other.half_extents_m[2]
-        if footprint_overlap and top <= box.center_m[2] - box.half_extents_m[2] + _TOUCH_M:
-            surfaces.append(top)
-    z = max(surfaces) + box.half_extents_m[2]
+    z = landing_z(box, [*scene_world(bb).boxes,
+                        *(object_box(bb, n, p) for n, p in stack.items() if n != name)])
     commit(bb, released, moved_objects={name: (box.center_m[0], box.center_m[1], z)})
     return "success"
 

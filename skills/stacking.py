@@ -87,6 +87,7 @@ __all__ = [
     "check_success",
     "grasp_param",
     "held",
+    "landing_z",
     "make_move_to_reach",
     "move_gripper_to_stack",
     "object_boxes",
@@ -281,8 +282,9 @@ def move_gripper_to_stack(
     return "success"
 
 
-def _landing_z(box: Box, others: Sequence[Box]) -> float:
-    """Centre height of ``box`` dropped straight down onto the highest surface under it."""
+def landing_z(box: Box, others: Sequence[Box]) -> float:
+    """Centre height of ``box`` dropped straight down onto the highest surface under it
+    (the floor at z = 0 else): OpenGripper's rule on both backends."""
     bottom = box.center_m[2] - box.half_extents_m[2]
     surfaces = [0.0]
     for other in others:
@@ -309,7 +311,7 @@ def open_gripper(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]
         others.append(table)
     box = boxes[name]
     positions = dict(bb["object_positions_world"])
-    positions[name] = (box.center_m[0], box.center_m[1], _landing_z(box, others))
+    positions[name] = (box.center_m[0], box.center_m[1], landing_z(box, others))
     bb["object_positions_world"] = positions
     bb[HELD_KEYS[arm]] = None
     return "success"
