@@ -1,7 +1,7 @@
 """The ``skillcompose`` command line (also ``python -m skillcompose``).
 
 Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. Other packages add
-theirs (``evolve``, ``robustness``, ``robot``) through a ``register_cli(subparsers)``
+theirs (``evolve``, ``robustness``, ``robot``, ``view``) through a ``register_cli(subparsers)``
 function in the modules listed in :data:`SUBCOMMAND_MODULES`.
 """
 
@@ -41,6 +41,7 @@ SUBCOMMAND_MODULES = (
     "evolve.cli",
     "skillcompose.robustness",
     "robots.cli",
+    "skillcompose_view.cli",
 )
 
 
