@@ -514,8 +514,8 @@ def _robot_scene(ep: Episode) -> Callable[[Mapping[str, Any] | None], None]:
             if b.name not in boxes:
                 with scene:
                     colour = "#a16207" if "table" in b.name else "#16a34a"
-                    boxes[b.name] = scene.box(b.size[0], b.size[1], b.size[2]).material(colour, opacity=0.85) \
-                        .with_name(f"box:{b.name}")
+                    boxes[b.name] = scene.box(b.size[0], b.size[1], b.size[2]) \
+                        .material(colour, opacity=0.85).with_name(f"box:{b.name}")
             boxes[b.name].move(*b.centre).rotate(0.0, 0.0, b.yaw)
 
     return pose
