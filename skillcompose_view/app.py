@@ -154,6 +154,10 @@ def _run_row(run: RunSummary) -> dict[str, Any]:
         "success": "–" if run.success is None else f"{100 * run.success:.0f}%",
         "settings": run.settings + (f" ({run.problem})" if run.problem else ""),
         "seed": "–" if run.seed is None else run.seed,
+        "fsa_url": "/fsa?" + urlencode({"path": f"{run.name}/best.yaml"}),
+        "replay_url": "/replay?" + urlencode({
+            "path": str(run.path / "best.yaml"), "task": run.task_module,
+            "settings": run.task_settings, "seed": 0}),
     }
 
 
@@ -206,11 +210,13 @@ def _runs_page(config: ViewerConfig) -> None:
         </q-td>""")
     table.add_slot("body-cell-name", r"""
         <q-td :props="props">
-          <a :href="'/fsa?path=' + encodeURIComponent(props.value + '/best.yaml')"
-             class="text-blue-700">{{ props.value }}</a>
+          <span class="font-medium">{{ props.value }}</span>
+          <a :href="props.row.fsa_url" class="text-blue-700 ml-3">FSA</a>
+          <a :href="props.row.replay_url" class="text-blue-700 ml-2">replay</a>
         </q-td>""")
     table.selected = [_run_row(r) for r in runs[: len(COLOURS)]]
-    ui.label("Tick runs to compare them on the chart; a run's name opens its best FSA.") \
+    ui.label("Tick runs to compare them on the chart; FSA opens a run's best FSA, replay "
+             "runs it once.") \
         .classes("text-sm text-slate-500")
     chart = ui.echart(_chart_options(runs, {r["name"] for r in table.selected})) \
         .classes("w-full h-96").props("data-testid=fitness-chart")
@@ -385,6 +391,8 @@ def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings
     _header("Replay")
     files = fsa_files(config)
     chosen = path or (str(files[0]) if files else "")
+    if chosen and not Path(chosen).is_absolute():
+        chosen = str(config.root / chosen)
     target = task or config.task or ""
     if not target and chosen:
         target = _task_of_run(Path(chosen))[0] or ""
@@ -429,32 +437,31 @@ def _episode_view(ep: Episode) -> None:
         .props("data-testid=episode-summary")
     pos = {"k": 0}
     with ui.row().classes("items-center gap-2 w-full"):
-        first = ui.button("⏮", on_click=lambda: show(0)).props("flat data-testid=first")
-        back = ui.button("◀ back", on_click=lambda: show(pos["k"] - 1)) \
+        first = ui.button(icon="first_page", on_click=lambda: show(0)) \
+            .props("flat data-testid=first").tooltip("the world before the first step")
+        back = ui.button("back", icon="chevron_left", on_click=lambda: show(pos["k"] - 1)) \
             .props("data-testid=back")
-        fwd = ui.button("forward ▶", on_click=lambda: show(pos["k"] + 1)) \
-            .props("data-testid=forward")
-        last = ui.button("⏭", on_click=lambda: show(n)).props("flat data-testid=last")
+        fwd = ui.button("forward", on_click=lambda: show(pos["k"] + 1)) \
+            .props("icon-right=chevron_right data-testid=forward")
+        last = ui.button(icon="last_page", on_click=lambda: show(n)) \
+            .props("flat data-testid=last").tooltip("the last step")
         slider = ui.slider(min=0, max=max(n, 1), value=0,
                            on_change=lambda e: show(int(e.value))).classes("w-64")
         step_label = ui.label("").classes("text-base").props("data-testid=step-label")
     active_label = ui.label("").classes("hidden").props("data-testid=active-state")
+    robot: Callable[[Mapping[str, Any] | None], None] | None = None
     with ui.row().classes("w-full no-wrap gap-6 items-start"):
-        with ui.column().classes("w-1/2"):
+        with ui.column().classes("w-2/5" if ep.kinematic else "w-1/2"):
             graph = ui.mermaid(mermaid(ep.fsa, active=ep.fsa.start)) \
                 .classes("fsa-graph w-full").props("data-testid=replay-graph")
-        with ui.column().classes("w-1/2 gap-2"):
-            ui.label("changed in this step").classes("font-semibold")
-            changes = ui.table(columns=[
-                {"name": c, "label": c, "field": c, "align": "left"}
-                for c in ("key", "before", "after")], rows=[], row_key="key") \
-                .classes("w-full").props("dense flat bordered wrap-cells data-testid=changes")
-            ui.label("blackboard after this step").classes("font-semibold")
-            board = ui.table(columns=[
-                {"name": c, "label": c, "field": c, "align": "left"}
-                for c in ("key", "value")], rows=[], row_key="key") \
-                .classes("w-full").props("dense flat bordered wrap-cells data-testid=blackboard")
-    robot = _robot_scene(ep) if ep.kinematic else None
+        with ui.column().classes("w-3/5 gap-2" if ep.kinematic else "w-1/2 gap-2"):
+            if ep.kinematic:
+                robot = _robot_scene(ep)
+            else:
+                changes, board = _step_tables()
+    if ep.kinematic:
+        with ui.row().classes("w-full no-wrap gap-6 items-start"):
+            changes, board = _step_tables(half=True)
 
     def show(k: int) -> None:
         k = max(0, min(n, k))
@@ -482,13 +489,27 @@ def _episode_view(ep: Episode) -> None:
     show(0)
 
 
+def _step_tables(half: bool = False) -> tuple[Any, Any]:
+    """The tables of what a step changed and of the blackboard after it."""
+    tables = []
+    for title, cols, testid in (("changed in this step", ("key", "before", "after"), "changes"),
+                                ("blackboard after this step", ("key", "value"), "blackboard")):
+        with ui.column().classes("w-1/2 gap-1" if half else "w-full gap-1"):
+            ui.label(title).classes("font-semibold")
+            tables.append(ui.table(columns=[
+                {"name": c, "label": c, "field": c, "align": "left"} for c in cols],
+                rows=[], row_key="key").classes("w-full")
+                .props(f"dense flat bordered wrap-cells data-testid={testid}"))
+    return tables[0], tables[1]
+
+
 def _robot_scene(ep: Episode) -> Callable[[Mapping[str, Any] | None], None]:
     """The PR2, table and objects in 3D; returns the function that poses them for a frame."""
     from .robot3d import pieces
 
     ui.label("the PR2, the table and the objects (drag to turn, scroll to zoom)") \
         .classes("font-semibold")
-    scene = ui.scene(width=900, height=520, background_color="#f1f5f9") \
+    scene = ui.scene(width=820, height=620, grid=(4, 16), background_color="#f1f5f9") \
         .props("data-testid=robot-scene")
     objects: list[Any] = []
     boxes: dict[str, Any] = {}
@@ -502,8 +523,8 @@ def _robot_scene(ep: Episode) -> Callable[[Mapping[str, Any] | None], None]:
             else:
                 obj = scene.cylinder(piece.size[0], piece.size[0], piece.size[1])
             objects.append(obj.material(piece.colour))
-    scene.move_camera(x=-0.9, y=-1.7, z=1.7, look_at_x=0.45, look_at_y=0.0, look_at_z=0.75,
-                      duration=0.0)
+    scene.move_camera(x=-0.35, y=-1.45, z=1.45, look_at_x=0.45, look_at_y=0.0,
+                      look_at_z=0.7, duration=0.0)
 
     def pose(frame: Mapping[str, Any] | None) -> None:
         if frame is None:

@@ -50,6 +50,7 @@ class RunSummary:
     best: float | None
     success: float | None  # share of fresh episodes that succeeded, at the end
     problem: str = ""  # why a file of the run could not be read
+    task_settings: str = ""  # the task's settings alone, as name=value, ...
 
 
 def read_history(path: Path) -> list[dict[str, Any]]:
@@ -159,6 +160,8 @@ def read_run(run_dir: Path, root: Path) -> RunSummary | None:
         name=name, path=run_dir, task=str(info.get("task", "?")),
         task_module=str(info.get("task_module", "")), settings=_settings_text(info),
         seed=seed if isinstance(seed, int) else None, status=status,
+        task_settings=", ".join(f"{k}={v}" for k, v in
+                                dict(info.get("task_settings") or {}).items()),
         generations=len(history), best=best, success=success, problem=problem,
     )
 

@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import pytest
 
@@ -163,6 +164,17 @@ def page(browser: Any) -> Iterator[Page]:
     p.page.on("requestfailed", lambda r: p.errors.append(f"request failed: {r.url}"))
     p.page.on("response", lambda r: p.errors.append(f"HTTP {r.status}: {r.url}")
               if r.status >= 400 else None)
+
+    def offline(route: Any) -> None:
+        """The network is off: anything not asked of this machine is an error."""
+        host = urlsplit(route.request.url).hostname
+        if host == "127.0.0.1" or route.request.url.startswith(("data:", "blob:")):
+            route.continue_()
+        else:
+            p.errors.append(f"asked another host: {route.request.url}")
+            route.abort()
+
+    context.route("**/*", offline)
     try:
         yield p
     finally:

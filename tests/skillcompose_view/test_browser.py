@@ -32,7 +32,8 @@ def runs_table(page: Page) -> dict[str, list[str]]:
     out = {}
     for k in range(rows.count()):
         cells = [c.strip() for c in rows.nth(k).locator("td").all_inner_texts()]
-        out[cells[1]] = cells[1:]  # cells[0] is the tick box
+        name = rows.nth(k).locator("td").nth(1).locator("span").inner_text().strip()
+        out[name] = [name, *cells[2:]]  # cells[0] is the tick box, cells[1] name and links
     return out
 
 
