@@ -29,7 +29,16 @@ from skillcompose.errors import SkillcomposeError
 from skillcompose.registry import Registry
 from skillcompose.task import load_task, parse_settings
 
-from .data import FSAView, RunSummary, find_runs, mermaid, read_fsa, read_history, read_run
+from .data import (
+    FSAView,
+    RunSummary,
+    find_runs,
+    mermaid,
+    pid_alive,
+    read_fsa,
+    read_history,
+    read_run,
+)
 from .episode import Episode, run_episode
 from .live import LIVE_SUFFIX, read_live
 
@@ -611,7 +620,11 @@ def _live_card(holder: Any, config: ViewerConfig, path: Path) -> dict[str, Any]:
         title.text = f"{record.get('name', fsa.name)} ({_rel(config, path)}), process " \
             f"{record.get('pid')}"
         skill = fsa.states[state].skill if state in fsa.states else "?"
+        pid = record.get("pid")
+        gone = not done and isinstance(pid, int) and not pid_alive(pid)
         status.text = (f"ended: {outcome} after {steps} step(s)" if done else
+                       f"stopped: process {pid} is gone; it was in {state} ({skill}) after "
+                       f"{steps} step(s)" if gone else
                        f"running: {state} ({skill}), {steps} step(s) done")
         active.text = str(state if not done else outcome)
         shown = (state, done, outcome)

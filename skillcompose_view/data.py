@@ -23,7 +23,7 @@ from skillcompose.graph import trap_states
 from skillcompose.registry import Registry
 
 __all__ = [
-    "FSAView", "RunSummary", "StateRow", "describe_value", "find_runs", "mermaid",
+    "FSAView", "RunSummary", "StateRow", "describe_value", "find_runs", "mermaid", "pid_alive",
     "read_fsa", "read_history", "read_run",
 ]
 
@@ -74,7 +74,8 @@ def read_history(path: Path) -> list[dict[str, Any]]:
     return records
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (on this machine)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -94,7 +95,7 @@ def _lock_holder(run_dir: Path) -> int | None:
         pid = int(text)
     except (OSError, ValueError):
         return None
-    return pid if pid > 0 and _pid_alive(pid) else None
+    return pid if pid > 0 and pid_alive(pid) else None
 
 
 def _settings_text(info: Mapping[str, Any]) -> str:

@@ -20,9 +20,12 @@ from urllib.parse import urlencode
 
 import pytest
 
-from skillcompose import load_fsa, load_task
+from examples.live_patrol import dock, drive_to_next, patrol_fsa, scan_room
+from skillcompose import Blackboard, Registry, load_fsa, load_task
+from skillcompose.executor import compile_fsa
+from skillcompose_view.live import LivePublisher
 
-from .conftest import REPO, Page, Viewer, append_generation, wait_for
+from .conftest import REPO, Page, Viewer, append_generation, start_viewer, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.browser]
 
@@ -240,6 +243,48 @@ def test_live_page_follows_a_running_fsa(viewer: Viewer, runs_dir: Path, page: P
     assert seen.index("Drive") < seen.index("Dock") < seen.index("success")
     status = page.page.get_by_test_id("live-status").first.inner_text()
     assert status == "ended: success after 7 step(s)"
+    assert page.errors == []
+
+
+def test_live_file_of_a_dead_process_says_so(viewer: Viewer, runs_dir: Path,
+                                             page: Page) -> None:
+    fsa = patrol_fsa()
+    bb = Blackboard()
+    bb["position_m"], bb["time_scale"] = (0.0, 0.0), 1.0
+    run = compile_fsa(fsa, Registry([drive_to_next, scan_room, dock])).start(bb, 0, trace=True)
+    run.tick()  # Drive has started
+    path = runs_dir / "ghost" / "ghost.live.json"
+    LivePublisher(path, fsa).publish(run, bb)
+    run.preempt()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    record = json.loads(path.read_text())
+    record["pid"] = dead.pid  # as if the program had been killed
+    path.write_text(json.dumps(record))
+    page.goto(viewer.url + "/live")
+    card = page.page.locator("[data-testid=live-card][data-file='ghost.live.json']")
+    wait_for(lambda: "stopped: process" in card.get_by_test_id("live-status").inner_text(),
+             what="the dead process")
+    assert "it was in Drive (DriveToNext)" in card.get_by_test_id("live-status").inner_text()
+    shutil.rmtree(runs_dir / "ghost")
+    wait_for(lambda: card.count() == 0, what="the vanished live file to go")
+    assert page.errors == []
+
+
+def test_view_of_one_file_with_its_task(runs_dir: Path, page: Page,
+                                        tmp_path: Path) -> None:
+    path = runs_dir / "pour.fsa.yaml"
+    one = start_viewer([str(path), "--task", "examples.pour_water"], tmp_path / "one.log",
+                       REPO)
+    try:
+        page.goto(one.url + "/fsa")
+        g = wait_for(lambda: graph(page, "fsa-graph"), what="the graph")
+        assert len(g["nodes"]) == 8
+        assert "checked against task pour_water's 6 skills" in page.page.inner_text("body")
+    finally:
+        code, text = one.stop()
+    assert code in (0, 130) and "Traceback" not in text, text
+    assert f"on http://127.0.0.1:{one.url.rsplit(':', 1)[1]}/fsa" in text
     assert page.errors == []
 
 
