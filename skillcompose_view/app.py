@@ -396,7 +396,8 @@ def _states_table(view: FSAView) -> None:
 # ---------------------------------------------------------------------------------------
 # replay
 # ---------------------------------------------------------------------------------------
-def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str) -> None:
+def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str,
+                 backend: str) -> None:
     _header("Replay")
     files = fsa_files(config)
     chosen = path or (str(files[0]) if files else "")
@@ -413,13 +414,15 @@ def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings
         task_in = ui.input("task module", value=target).classes("w-56") \
             .props("data-testid=task-input")
         set_in = ui.input("settings (name=value, ...)", value=setting_text).classes("w-56")
+        backend_in = ui.input("backend (default: the task's)", value=backend).classes("w-48")
         seed_in = ui.number("seed", value=int(seed) if seed.isdigit() else 0, min=0,
                             precision=0).classes("w-24")
 
         def go() -> None:
             ui.navigate.to("/replay?" + urlencode({
                 "path": file_in.value or "", "task": task_in.value or "",
-                "seed": int(seed_in.value or 0), "settings": set_in.value or ""}))
+                "seed": int(seed_in.value or 0), "settings": set_in.value or "",
+                "backend": backend_in.value or ""}))
 
         ui.button("Run", on_click=go).props("data-testid=run-button")
     if not (chosen and target):
@@ -433,7 +436,7 @@ def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings
     def build() -> None:
         pairs = [s.strip() for s in setting_text.split(",") if s.strip()]
         episode = run_episode(Path(chosen), target, int(seed_in.value or 0),
-                              parse_settings(pairs))
+                              parse_settings(pairs), backend=backend.strip() or None)
         _episode_view(episode)
 
     _safe("replay", build)
@@ -650,9 +653,9 @@ def build(config: ViewerConfig) -> None:
         _safe("FSA", lambda: _fsa_page(config, path, task))
 
     @ui.page("/replay", title="skillcompose view: replay")
-    def replay_page(path: str = "", task: str = "", seed: str = "0",
-                    settings: str = "") -> None:
-        _safe("replay", lambda: _replay_page(config, path, task, seed, settings))
+    def replay_page(path: str = "", task: str = "", seed: str = "0", settings: str = "",
+                    backend: str = "") -> None:
+        _safe("replay", lambda: _replay_page(config, path, task, seed, settings, backend))
 
     @ui.page("/live", title="skillcompose view: live")
     def live_page() -> None:

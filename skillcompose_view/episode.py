@@ -15,6 +15,7 @@ from typing import Any
 
 from skillcompose import Blackboard, load_fsa, load_task
 from skillcompose.blackboard import DELETED
+from skillcompose.cli import check_backend
 from skillcompose.executor import trial_rngs
 from skillcompose.fsa import FSA
 from skillcompose.ticking import RUNNING
@@ -65,14 +66,17 @@ def _shown(bb: Blackboard) -> dict[str, str]:
 
 
 def run_episode(path: Path, task_target: str, seed: int = 0,
-                settings: Mapping[str, Any] | None = None, *,
+                settings: Mapping[str, Any] | None = None, *, backend: str | None = None,
                 robot: bool | None = None) -> Episode:
-    """Run the FSA file at ``path`` once on task ``task_target``; ``robot`` (default: when
+    """Run the FSA file at ``path`` once on task ``task_target`` (on ``backend``, default
+    the task's); ``robot`` (default: when
     the blackboard holds the kinematic skills' robot keys) adds the PR2 at each step.
     Raises ``SkillcomposeError`` (one line) for a file, task or setting that is wrong."""
     fsa = load_fsa(path)
     task = load_task(task_target, **dict(settings or {}))
-    compiled = task.compile(fsa)
+    if backend:
+        check_backend(task.registry, backend)  # as `skillcompose run --backend` does
+    compiled = task.compile(fsa, backend or None)
     rng = next(iter(trial_rngs(seed, 1)))
     bb = task.setup(rng) if task.setup is not None else Blackboard()
     kinematic = robot if robot is not None else (

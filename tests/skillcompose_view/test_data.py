@@ -93,6 +93,13 @@ def test_episode_is_the_traced_run() -> None:
     assert episode.outcome == trial.result.outcome and not episode.kinematic
 
 
+def test_episode_on_another_backend_is_checked() -> None:
+    from skillcompose.errors import SkillcomposeError
+
+    with pytest.raises(SkillcomposeError, match="--backend 'nonsense': no loaded skill"):
+        run_episode(POUR, "examples.pour_water", 0, backend="nonsense")
+
+
 def test_live_patrol_publishes_each_state(tmp_path: Path,
                                           monkeypatch: pytest.MonkeyPatch) -> None:
     states = []
