@@ -61,6 +61,7 @@ class ViewerConfig:
     file: Path | None = None  # an FSA file given on the command line
     task: str | None = None  # a task module for units, validation and replays
     settings: Mapping[str, Any] = field(default_factory=dict)
+    label: str = ""  # the root as the command line named it, for the pages to show
 
 
 def fsa_files(config: ViewerConfig) -> list[Path]:
@@ -197,7 +198,7 @@ def _chart_options(runs: list[RunSummary], chosen: set[str]) -> dict[str, Any]:
 def _runs_page(config: ViewerConfig) -> None:
     _header("Runs")
     runs = find_runs(config.root)
-    ui.label(f"Runs under {config.root}").classes("text-xl font-semibold")
+    ui.label(f"Runs under {_shown(config, config.root)}").classes("text-xl font-semibold")
     count = ui.label("").props("data-testid=run-count").classes("text-slate-600")
     columns: list[dict[str, Any]] = [
         {"name": "name", "label": "run", "field": "name", "align": "left", "sortable": True},
@@ -319,10 +320,12 @@ def _fsa_page(config: ViewerConfig, path: str, task: str) -> None:
                       "/fsa?" + urlencode({"path": e.value, "task": task}))) \
             .classes("min-w-[28rem]").props("data-testid=fsa-select")
     if chosen is None:
-        ui.label(f"No FSA file under {config.root} (files named *.fsa.yaml or best.yaml).")
+        ui.label(f"No FSA file under {_shown(config, config.root)} (files named *.fsa.yaml "
+                 "or best.yaml).")
         return
     if not _allowed(config, chosen):
-        ui.label(f"{chosen}: not below {config.root}; the viewer shows only files there") \
+        ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
+                 "files there") \
             .classes("text-red-700").props("data-testid=error")
         return
 
@@ -336,9 +339,20 @@ def _fsa_page(config: ViewerConfig, path: str, task: str) -> None:
             registry, what = None, ""
             ui.label(f"task {target}: {exc}").classes("text-orange-700")
         view = read_fsa(chosen, registry, what)
-        _fsa_body(view)
+        _fsa_body(view, _shown(config, view.path))
 
-    _safe(str(chosen), build)
+    _safe(_shown(config, chosen), build)
+
+
+def _shown(config: ViewerConfig, path: Path) -> str:
+    """``path`` as the person named it: below the root as given on the command line."""
+    try:
+        rel = path.resolve().relative_to(config.root.resolve())
+    except (ValueError, OSError):
+        return str(path)
+    if not config.label:
+        return str(path)
+    return str(Path(config.label) / rel) if rel.parts else config.label
 
 
 def _rel(config: ViewerConfig, path: Path) -> str:
@@ -348,7 +362,7 @@ def _rel(config: ViewerConfig, path: Path) -> str:
         return str(path)
 
 
-def _fsa_body(view: FSAView) -> None:
+def _fsa_body(view: FSAView, shown: str) -> None:
     fsa = view.fsa
     with ui.row().classes("w-full no-wrap gap-6 items-start"):
         with ui.column().classes("w-3/5 gap-2"):
@@ -357,7 +371,7 @@ def _fsa_body(view: FSAView) -> None:
                     ui.label(f"{len(view.problems)} problem(s) in {view.path.name}") \
                         .classes("font-semibold text-red-800")
                     for p in view.problems:
-                        ui.label(p.render(view.path)).classes("text-sm text-red-800") \
+                        ui.label(p.render(shown)).classes("text-sm text-red-800") \
                             .props("data-testid=problem")
             if fsa is not None:
                 ui.label(f"{fsa.name}: {len(fsa.states)} states, start {fsa.start}, "
@@ -377,7 +391,7 @@ def _fsa_body(view: FSAView) -> None:
                     .classes("fsa-graph w-full").props("data-testid=fsa-graph")
                 _states_table(view)
         with ui.column().classes("w-2/5"):
-            ui.label(str(view.path)).classes("text-sm text-slate-600")
+            ui.label(shown).classes("text-sm text-slate-600")
             ui.html(_yaml_html(view), sanitize=False).classes("w-full") \
                 .props("data-testid=yaml")
 
@@ -429,7 +443,8 @@ def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings
         ui.label("Choose an FSA file and a task module (e.g. examples.pour_water), then Run.")
         return
     if not _allowed(config, Path(chosen)):
-        ui.label(f"{chosen}: not below {config.root}; the viewer shows only files there") \
+        ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
+                 "files there") \
             .classes("text-red-700").props("data-testid=error")
         return
 
@@ -559,7 +574,8 @@ def _robot_scene(ep: Episode) -> Callable[[Mapping[str, Any] | None], None]:
 # ---------------------------------------------------------------------------------------
 def _live_page(config: ViewerConfig) -> None:
     _header("Live")
-    ui.label(f"FSAs publishing their state under {config.root} (files *{LIVE_SUFFIX})") \
+    ui.label(f"FSAs publishing their state under {_shown(config, config.root)} "
+             f"(files *{LIVE_SUFFIX})") \
         .classes("text-xl font-semibold")
     ui.label("A program publishes with skillcompose_view.live.LivePublisher; try "
              "python -m examples.live_patrol --out DIR.").classes("text-sm text-slate-500")

@@ -88,11 +88,12 @@ def handle(args: argparse.Namespace) -> int:
 
     from .app import ViewerConfig, build
 
+    label = str(path.parent if file is not None else path)
     build(ViewerConfig(root=root, file=file.resolve() if file else None, task=args.task,
-                       settings=settings))
+                       settings=settings, label=label))
     url_host = f"[{args.host}]" if ":" in args.host else args.host
     page = "/fsa" if file is not None else "/"
-    print(f"skillcompose view: serving {root} on http://{url_host}:{args.port}{page} "
+    print(f"skillcompose view: serving {label} on http://{url_host}:{args.port}{page} "
           "(Ctrl-C stops it)", flush=True)
     ui.run(host=args.host, port=args.port, reload=False, show=False,
            title="skillcompose view", show_welcome_message=False, dark=False,

@@ -82,13 +82,14 @@ def shoot(out: Path, chromium: str) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     with tempfile.TemporaryDirectory() as tmp:
-        root = Path(tmp)
+        root = Path(tmp) / "runs"  # the pages show it as "runs", the name given below
+        root.mkdir()
         make_folder(root)
         port = _free_port()
         env = {**os.environ, "PYTHONPATH": str(REPO)}
         viewer = subprocess.Popen(
-            [sys.executable, "-m", "skillcompose", "view", str(root), "--port", str(port)],
-            cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [sys.executable, "-m", "skillcompose", "view", "runs", "--port", str(port)],
+            cwd=root.parent, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         patrol = None
         try:
             base = f"http://127.0.0.1:{port}"

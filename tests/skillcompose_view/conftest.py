@@ -158,6 +158,7 @@ class Page:
 def page(browser: Any) -> Iterator[Page]:
     context = browser.new_context(viewport={"width": 1500, "height": 1100})
     p = Page(context.new_page())
+    p.page.set_default_timeout(10_000)
     p.page.on("console", lambda m: p.errors.append(f"console {m.type}: {m.text}")
               if m.type == "error" else None)
     p.page.on("pageerror", lambda e: p.errors.append(f"page error: {e}"))

@@ -31,13 +31,16 @@ pytestmark = [pytest.mark.slow, pytest.mark.browser]
 
 
 def runs_table(page: Page) -> dict[str, list[str]]:
-    rows = page.page.locator("[data-testid=runs-table] tbody tr")
-    out = {}
-    for k in range(rows.count()):
-        cells = [c.strip() for c in rows.nth(k).locator("td").all_inner_texts()]
-        name = rows.nth(k).locator("td").nth(1).locator("span").inner_text().strip()
-        out[name] = [name, *cells[2:]]  # cells[0] is the tick box, cells[1] name and links
-    return out
+    """The runs table's rows by run name: name, task, status, generations, best, fresh
+    success, seed, settings (read in one go, so a refresh cannot tear it)."""
+    rows = page.page.evaluate("""() => [...document.querySelectorAll(
+            '[data-testid=runs-table] tbody tr')].map(tr => {
+        const tds = [...tr.querySelectorAll('td')];
+        const name = tds.length > 1 ? tds[1].querySelector('span') : null;
+        return name ? [name.textContent.trim(), ...tds.slice(2).map(td => td.innerText.trim())]
+                    : null;
+    }).filter(r => r)""")
+    return {r[0]: r for r in rows}
 
 
 def chart_points(page: Page) -> dict[str, int]:
