@@ -279,8 +279,8 @@ def _yaml_html(view: FSAView) -> str:
 
 _STYLE = """
 <style>
-.yaml-view { font-size: 12.5px; line-height: 1.45; background: #f8fafc; border: 1px solid #e2e8f0;
-  border-radius: 6px; padding: 8px 0; overflow-x: auto; margin: 0; }
+.yaml-view { max-width: 100%; font-size: 12.5px; line-height: 1.45; background: #f8fafc;
+  border: 1px solid #e2e8f0; border-radius: 6px; padding: 8px 0; overflow-x: auto; margin: 0; }
 .yaml-line, .yaml-problem { display: block; padding: 0 10px; white-space: pre; }
 .yaml-line .ln { color: #94a3b8; user-select: none; }
 .yaml-line.bad { background: #fee2e2; }
@@ -365,7 +365,7 @@ def _rel(config: ViewerConfig, path: Path) -> str:
 def _fsa_body(view: FSAView, shown: str) -> None:
     fsa = view.fsa
     with ui.row().classes("w-full no-wrap gap-6 items-start"):
-        with ui.column().classes("w-3/5 gap-2"):
+        with ui.column().classes("w-3/5 min-w-0 gap-2"):
             if view.problems:
                 with ui.card().classes("w-full bg-red-50").props("data-testid=problems"):
                     ui.label(f"{len(view.problems)} problem(s) in {view.path.name}") \
@@ -390,7 +390,7 @@ def _fsa_body(view: FSAView, shown: str) -> None:
                                    unreachable=view.unreachable, traps=view.traps)) \
                     .classes("fsa-graph w-full").props("data-testid=fsa-graph")
                 _states_table(view)
-        with ui.column().classes("w-2/5"):
+        with ui.column().classes("w-2/5 min-w-0"):
             ui.label(shown).classes("text-sm text-slate-600")
             ui.html(_yaml_html(view), sanitize=False).classes("w-full") \
                 .props("data-testid=yaml")
@@ -403,7 +403,7 @@ def _states_table(view: FSAView) -> None:
     ui.table(columns=[
         {"name": c, "label": c, "field": c, "align": "left"}
         for c in ("state", "skill", "params", "transitions", "flags")
-    ], rows=rows, row_key="state").classes("w-full").props("dense flat bordered "
+    ], rows=rows, row_key="state").classes("w-full").props("dense flat bordered wrap-cells "
                                                            "data-testid=states-table")
 
 
