@@ -428,7 +428,7 @@ def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings
         task_in = ui.input("task module", value=target).classes("w-56") \
             .props("data-testid=task-input")
         set_in = ui.input("settings (name=value, ...)", value=setting_text).classes("w-56")
-        backend_in = ui.input("backend (default: the task's)", value=backend).classes("w-48")
+        backend_in = ui.input("backend", value=backend, placeholder="the task's").classes("w-36")
         seed_in = ui.number("seed", value=int(seed) if seed.isdigit() else 0, min=0,
                             precision=0).classes("w-24")
 
