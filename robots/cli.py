@@ -16,11 +16,16 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from robots.collision import Box, Scene
 from robots.errors import InvalidConfiguration, RobotModelError
-from robots.model import RobotModel, RobotPose, load_pr2
+
+if TYPE_CHECKING:
+    from robots.collision import Scene
+    from robots.model import RobotModel, RobotPose
+
+# Pinocchio (robots.model, robots.collision) is imported when a robot command runs, not when
+# `skillcompose --help` registers the command.
 
 _POSE_KEYS = {"base_xy_yaw", "torso_height_m", "arm_rad", "boxes"}
 _BOX_KEYS = {"center_m", "half_extents_m", "yaw_rad", "name"}
@@ -44,6 +49,9 @@ def register_cli(subparsers: Any) -> None:
 
 def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
     """A pose and scene from ``neutral``, ``tucked`` or a JSON file (see module doc)."""
+    from robots.collision import Box, Scene
+    from robots.model import RobotPose
+
     if spec == "neutral":
         return model.neutral_pose(), Scene()
     if spec == "tucked":
@@ -90,6 +98,7 @@ def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
 
 def run_robot_cli(args: argparse.Namespace) -> int:
     """Run a ``robot`` sub-command; returns the exit code (errors printed, code 2)."""
+    from robots.model import load_pr2
     from robots.render import render_configuration
 
     try:

@@ -34,7 +34,6 @@ import itertools
 import math
 import multiprocessing
 import os
-import sys
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -43,7 +42,16 @@ from typing import Any
 
 import numpy as np
 
-from .arguments import MAX_TRIALS, MAX_WORKERS, module_or_file, output_file, seed, setting, whole
+from .arguments import (
+    MAX_TRIALS,
+    MAX_WORKERS,
+    module_or_file,
+    note,
+    output_file,
+    seed,
+    setting,
+    whole,
+)
 from .cli import check_backend
 from .errors import SkillcomposeError
 from .executor import compile_fsa
@@ -124,6 +132,7 @@ def robustness_sweep(
     settings: Mapping[str, Any] | None = None,
     backend: str | None = None,
     step_limit: int | None = None,
+    progress: bool = True,
 ) -> list[SweepRow]:
     """Run ``fsa`` ``reps`` times at each value of the task setting ``setting``.
 
@@ -133,6 +142,7 @@ def robustness_sweep(
     - ``p_fail``: the values of ``setting`` to sweep (the failure probability by default).
     - ``settings``: the task's other settings, kept fixed.
     - ``workers``: processes; the rows are the same for any number.
+    - ``progress``: a progress bar on a terminal (see :func:`~skillcompose.progress.progress_bar`).
 
     Returns one :class:`SweepRow` per value, in the order given.
     """
@@ -160,7 +170,8 @@ def robustness_sweep(
         for start, stop in _chunks(reps, workers, len(values))
     ]
     parts = []
-    with progress_bar(len(values) * reps, "run", f"sweep of {setting}") as bar:
+    with progress_bar(len(values) * reps, "run", f"sweep of {setting}",
+                      disable=not progress) as bar:
         if workers == 1 or len(jobs) == 1:
             for job in jobs:
                 parts.append(_run_chunk(job))
@@ -456,7 +467,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     rows = robustness_sweep(
         args.file, args.task, values, reps=args.reps, seed=args.seed, workers=args.workers,
         setting=args.setting, settings=settings, backend=args.backend,
-        step_limit=args.step_limit,
+        step_limit=args.step_limit, progress=not getattr(args, "quiet", False),
     )
     print(format_table(rows))
     csv_path = args.csv
@@ -464,8 +475,8 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         csv_path = str(Path(args.output).with_suffix(".csv"))
     if csv_path:
         write_csv(rows, csv_path)
-        print(f"table: {csv_path}", file=sys.stderr)
+        note(args, f"table: {csv_path}")
     if args.output:
         plot_sweep(rows, args.output, title=f"{Path(args.file).name} on {args.task}")
-        print(f"plot: {args.output}", file=sys.stderr)
+        note(args, f"plot: {args.output}")
     return 0
