@@ -16,11 +16,9 @@ saved as an editable FSA file that ``skillcompose run`` runs and ``--seed-fsa`` 
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING, Any
-
-# `simplify` names both a module and its function: imported now, so that the function, not
-# the module an import of `evolve.simplify` would leave here, is `evolve.simplify`.
-from .simplify import merge_duplicates, simplify
 
 if TYPE_CHECKING:
     from .algorithm import EvolutionResult, GenerationRecord, check_fresh, evolve
@@ -50,11 +48,14 @@ if TYPE_CHECKING:
         mutate_node,
     )
     from .rundir import RunDir, draw_fsa, plot_history
+    from .simplify import merge_duplicates, simplify
 
 # Each public name and the module that defines it: the package imports that module when the
 # name is first used, so that importing the package (the command line's --help does) stays
 # cheap.
 _HOMES = {
+    "merge_duplicates": ".simplify",
+    "simplify": ".simplify",
     "BACKENDS": ".evaluation",
     "CheckpointError": ".errors",
     "EvalLimits": ".evaluation",
@@ -146,3 +147,17 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """The package's module object. ``simplify`` names both a function and the module
+    ``evolve.simplify``; importing that module would set the package's ``simplify`` to the
+    module, so a public name is never replaced by a submodule (``sys.modules`` keeps it)."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _HOMES and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

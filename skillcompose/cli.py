@@ -23,9 +23,7 @@ import sys
 import time
 import traceback
 from collections.abc import Sequence
-from typing import Any, NoReturn
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from . import __version__
 from .arguments import (
@@ -41,13 +39,14 @@ from .arguments import (
     setting,
     whole,
 )
-from .blackboard import DELETED
 from .errors import FSAValidationError, Problem, SkillcomposeError
-from .executor import compile_fsa, error_summary, summarize
-from .fsafile import load_fsa
-from .progress import progress_bar
-from .registry import Registry
-from .task import Task, load_task, parse_settings, trials
+
+if TYPE_CHECKING:
+    from .registry import Registry
+    from .task import Task
+
+# The runtime (numpy, the executor, the file reader, tasks) is imported by the command that
+# runs, so that `skillcompose --help` answers at once.
 
 __all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
 
@@ -199,6 +198,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 # ---------------------------------------------------------------------------------------
 def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
+    from .registry import Registry
+    from .task import load_task, parse_settings
+
     started = time.perf_counter()
     task: Task | None = None
     if getattr(args, "task", None):
@@ -234,6 +236,13 @@ def check_backend(registry: Registry, backend: str) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .executor import compile_fsa, error_summary, summarize
+    from .fsafile import load_fsa
+    from .progress import progress_bar
+    from .task import trials
+
     fsa = load_fsa(args.file)
     registry, task = _load(args)
     if not len(registry):
@@ -318,6 +327,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _short(v: Any) -> str:
+    from .blackboard import DELETED
+
     if v is DELETED:
         return "∅"
     text = repr(v)
@@ -347,6 +358,8 @@ def _invalid_document(file: str, exc: FSAValidationError) -> dict[str, Any]:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from .fsafile import load_fsa
+
     fsa = load_fsa(args.file)
     skills_checked: int | None = None
     if args.skills or args.task:
@@ -356,10 +369,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
         checked = f"against {len(registry)} skills"
     else:
         checked = "structure only (give --skills or --task to check skills and parameters)"
-    from .graph import trap_states
-
     unreachable = fsa.unreachable()
-    traps = trap_states(fsa)
+    traps = fsa.trap_states()  # networkx-free: validate stays quick
     if getattr(args, "json", False):
         print_json({"command": "validate", "file": args.file, "valid": True,
                     "states": len(fsa.states), "start": fsa.start,
@@ -378,6 +389,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_show(args: argparse.Namespace) -> int:
     from .draw import render, to_dot, to_mermaid
+    from .fsafile import load_fsa
 
     fsa = load_fsa(args.file)
     if args.output:
