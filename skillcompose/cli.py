@@ -326,16 +326,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _short(v: Any) -> str:
-    from .blackboard import DELETED
-
-    if v is DELETED:
-        return "∅"
-    text = repr(v)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
 def _print_trace(result: Any, out: Any = None) -> None:
+    from .display import short_value as _short
+
     out = out if out is not None else sys.stdout
     for ev in result.trace:
         print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}",

@@ -269,6 +269,12 @@ class FSA:
         reach = set(self.reachable())
         return [s for s in self.states if s not in reach]
 
+    def _repr_svg_(self) -> str:
+        """In a notebook: the FSA's drawing (see :func:`skillcompose.draw.to_svg`)."""
+        from .draw import to_svg
+
+        return to_svg(self)
+
     def trap_states(self) -> list[str]:
         """States reachable from the start from which no terminal outcome can be reached: a
         run that enters one ends in timeout (breadth-first order). The same as
