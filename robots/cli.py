@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robots.errors import InvalidConfiguration, RobotModelError
+from skillcompose.arguments import note
 
 if TYPE_CHECKING:
     from robots.collision import Scene
@@ -106,7 +107,7 @@ def run_robot_cli(args: argparse.Namespace) -> int:
         if args.robot_command == "show":
             pose, scene = load_configuration(model, args.config)
             out = render_configuration(model, pose, args.out, scene=scene)
-            print(f"wrote {out}")
+            note(args, f"wrote {out}")  # a note on standard error, as every command's
             return 0
     except RobotModelError as exc:
         print(f"error: {exc}")
