@@ -103,14 +103,14 @@ def test_quiet_and_verbose_notes(capsys: pytest.CaptureFixture[str], tmp_path: P
     assert "loaded" in err and "exit status 0 after" in err
 
 
-def test_evolve_json(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    doc = _json(capsys, [
+def test_evolve_json(capsys: pytest.CaptureFixture[str]) -> None:
+    doc = _json(capsys, [  # no --out: no run directory, no pictures to draw
         "evolve", "examples.toy_task", "--population", "8", "--initial-nodes", "4",
         "--generations", "2", "--backend", "serial", "--check-trials", "5",
-        "--simplify-trials", "5", "--out", str(tmp_path / "run"), "--json"])
+        "--simplify-trials", "5", "--json"])
     assert doc["command"] == "evolve" and doc["task"] == "toy_fetch"
     assert doc["generations"] <= 2 and doc["evaluations"] > 0
-    assert doc["fresh"]["episodes"] == 5 and doc["files"]
+    assert doc["fresh"]["episodes"] == 5 and doc["files"] == [] and doc["out_dir"] is None
     assert set(doc) >= {"solved", "best_fitness", "states", "faults", "run_command"}
 
 
