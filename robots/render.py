@@ -73,7 +73,11 @@ def _visual_geometry(urdf_path: Path) -> tuple[pin.Model, pin.GeometryModel, tup
         path = Path(obj.meshPath)
         if path.suffix.lower() not in (".stl", ".dae", ".obj", ".ply") or not path.is_file():
             continue  # the PR2's sensor frames are small boxes: not drawn
-        mesh = trimesh.load_mesh(path, force="mesh")
+        try:
+            mesh = trimesh.load_mesh(path, force="mesh")
+        except (ValueError, OSError) as exc:
+            raise RobotDataNotFound("example-robot-data",
+                                    f"cannot read the mesh {path}: {exc}") from exc
         if len(mesh.faces) > MAX_FACES_PER_MESH:
             mesh = mesh.simplify_quadric_decimation(face_count=MAX_FACES_PER_MESH)
         rgb = np.asarray(obj.meshColor[:3], dtype=float)
