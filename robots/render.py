@@ -209,7 +209,9 @@ def render_configuration(
     polygons = list(robot.triangles_m)
     colours = [robot.colours]
     for box in (scene or Scene()).boxes:
-        tiles = _box_faces(box, tile_m=0.06)
+        # each tile as two triangles: polygons of one size (matplotlib pads mixed sizes with
+        # values that can overflow its automatic limits)
+        tiles = [tri for t in _box_faces(box, tile_m=0.06) for tri in (t[:3], t[[0, 2, 3]])]
         polygons += tiles
         colours.append(np.repeat(_box_colour(box)[None, :], len(tiles), axis=0))
     shaded = _shade(polygons, np.concatenate(colours))
