@@ -1,5 +1,6 @@
 """``skillcompose view``: the web viewer's subcommand (registered through the runtime CLI's
-hook for other packages; the web libraries load only when the command runs)."""
+hook for other packages; the runtime's heavy modules and the web libraries load only when
+the command runs, so ``skillcompose --help`` stays light)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 from skillcompose.arguments import UsageError, module_or_file, setting, whole
-from skillcompose.task import parse_settings
 
 __all__ = ["DEFAULT_PORT", "handle", "register_cli"]
 
@@ -81,6 +81,8 @@ def handle(args: argparse.Namespace) -> int:
                          "FSA file")
     file = path if path.is_file() else None
     root = (path.parent if file is not None else path).resolve()
+    from skillcompose.task import parse_settings  # the runtime loads here, not for --help
+
     settings = parse_settings(args.settings)
     _check_port(args.host, args.port)
 
