@@ -1,7 +1,7 @@
 """The ``skillcompose`` command line (also ``python -m skillcompose``).
 
 Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. Other packages add
-theirs (``evolve``, ``robustness``, ``robot``) through a ``register_cli(subparsers)``
+theirs (``evolve``, ``robustness``, ``robot``, ``view``) through a ``register_cli(subparsers)``
 function in the modules listed in :data:`SUBCOMMAND_MODULES`.
 
 Conventions every subcommand follows (those added by other packages too): ``-q``/``-v``
@@ -63,6 +63,7 @@ SUBCOMMAND_MODULES = (
     "evolve.cli",
     "skillcompose.robustness",
     "robots.cli",
+    "skillcompose_view.cli",
 )
 
 
