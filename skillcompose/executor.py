@@ -19,7 +19,6 @@ checked before each tick; an instant skill under a limit runs in a worker thread
 from __future__ import annotations
 
 import functools
-import math
 import time
 import traceback
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -31,6 +30,7 @@ from .activation import RUNNING, Activation, Starter, ThreadActivation
 from .blackboard import Access, Blackboard, _same
 from .errors import ParamError, SkillProtocolError, UndeclaredOutcomeError
 from .fsa import ERROR, FSA, PREEMPTED, TIMEOUT
+from .params import time_limit_problem
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -242,12 +242,9 @@ def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> di
                 f"time_limits: FSA {fsa.name or ''} has no state {state!r}; "
                 f"its states are {names}"
             )
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                not math.isfinite(value) or value <= 0:
-            raise ParamError(
-                f"time_limits: state {state}: the limit must be a positive number of "
-                f"seconds, got {value!r}; write e.g. {{{state!r}: 2.0}}"
-            )
+        problem = time_limit_problem(value, state, "the limit", f"write e.g. {{{state!r}: 2.0}}")
+        if problem is not None:
+            raise ParamError(f"time_limits: {problem.render()}")
         out[state] = float(value)
     return out
 

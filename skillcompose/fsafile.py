@@ -38,6 +38,7 @@ with its file, line and column, the state and key, what was expected and the fix
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 import os
@@ -63,7 +64,8 @@ from ruamel.yaml.reader import ReaderError
 
 from .errors import FSAFileError, FSAValidationError, Problem
 from .files import atomic_write
-from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, MAX_STEP_LIMIT, Source, State
+from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step_limit_problem
+from .params import time_limit_problem
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -393,6 +395,13 @@ class _Reader:
             line, col = node.start_mark.line + 1, node.start_mark.column + 1
         self.problems.append(Problem(message, state, key, fix, line, col))
 
+    def report(self, node: Node, problem: Problem | None) -> bool:
+        """Note ``problem`` (if any) at ``node``'s position; True when there was one."""
+        if problem is not None:
+            self.problems.append(dataclasses.replace(
+                problem, line=node.start_mark.line + 1, column=node.start_mark.column + 1))
+        return problem is not None
+
     def raise_if_problems(self) -> None:
         if self.problems:
             raise FSAFileError(self.problems, self.path)
@@ -629,11 +638,7 @@ class _Reader:
         if "step_limit" in top:
             node = top["step_limit"][1]
             step_limit = self.scalar(node)
-            if not isinstance(step_limit, int) or isinstance(step_limit, bool) or \
-                    not 1 <= step_limit <= MAX_STEP_LIMIT:
-                self.fail(node, f"step_limit must be a positive whole number, got "
-                          f"{_clip(repr(step_limit))} (at most {MAX_STEP_LIMIT})",
-                          key="step_limit", fix="for example `step_limit: 20`")
+            if self.report(node, step_limit_problem(step_limit)):
                 step_limit = DEFAULT_STEP_LIMIT
         terminals: tuple[str, ...] = DEFAULT_TERMINALS
         if "terminals" in top:
@@ -746,11 +751,7 @@ class _Reader:
             tnode = fields["time_limit"][1]
             self.mark(("states", sname, "time_limit"), tnode)
             value = self.scalar(tnode)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                    not math.isfinite(value) or value <= 0:
-                self.fail(tnode, f"time_limit must be a positive number of seconds, got "
-                          f"{value!r}", state=sname, key="time_limit",
-                          fix="for example `time_limit: 2.0`")
+            if self.report(tnode, time_limit_problem(value, sname)):
                 ok = False
             else:
                 time_limit = float(value)

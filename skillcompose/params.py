@@ -19,13 +19,15 @@ range: ``n`` genes of the genome, one list in a file.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from .errors import ParamError
+from .errors import ParamError, Problem
 
-__all__ = ["Choice", "Param", "ParamKind", "ParamSpec", "Scale"]
+__all__ = [
+    "Choice", "Param", "ParamKind", "ParamSpec", "Scale", "param_problems", "time_limit_problem",
+]
 
 ParamKind = Literal["float", "int", "bool", "choice"]
 Scale = Literal["linear", "log"]
@@ -215,6 +217,46 @@ class ParamSpec:
         else:
             u = (float(value) - self.low) / (self.high - self.low)
         return min(max(u, 0.0), 1.0)
+
+
+def param_problems(
+    skill: str, specs: Sequence[ParamSpec], given: Mapping[str, Any], state: str | None = None
+) -> tuple[dict[str, Any], list[Problem]]:
+    """The one check of a state's parameters, for the model, the file reader and the genome.
+
+    Returns the values (the defaults overlaid with each valid value of ``given``, as its
+    parameter's type) and a :class:`~skillcompose.errors.Problem` (``key``: the parameter)
+    per unknown name or bad value; callers add where it is (a file's line, a state).
+    """
+    values = {p.name: p.default for p in specs}
+    by_name = {p.name: p for p in specs}
+    problems: list[Problem] = []
+    for name, value in given.items():
+        spec = by_name.get(name)
+        if spec is None:
+            problems.append(Problem(
+                f"skill {skill} has no parameter {name!r}; its parameters are "
+                f"{list(by_name) or 'none'}", state, name,
+            ))
+            continue
+        try:
+            values[name] = spec.check(value)
+        except ParamError as exc:
+            problems.append(Problem(f"skill {skill}: {exc}", state, name))
+    return values, problems
+
+
+def time_limit_problem(
+    value: Any, state: str | None = None, what: str = "time_limit",
+    fix: str = "for example `time_limit: 2.0`",
+) -> Problem | None:
+    """The one check of a state's wall-clock limit [s] (a positive finite number): None when
+    ``value`` passes, else the problem, ``what`` naming the limit as the caller knows it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value) or value <= 0:
+        return Problem(f"{what} must be a positive number of seconds, got {value!r}", state,
+                       "time_limit", fix)
+    return None
 
 
 def make_param_spec(

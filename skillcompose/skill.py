@@ -37,7 +37,7 @@ import numpy as np
 from .activation import RUNNING, Starter, driven, start_generator, start_instance
 from .blackboard import Access, Blackboard
 from .errors import ParamError, SkillDefinitionError, UndeclaredOutcomeError
-from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
+from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec, param_problems
 
 __all__ = [
     "GeneratorSkill",
@@ -84,22 +84,13 @@ class SkillSpec:
         return {p.name: p.default for p in self.params}
 
     def resolve_params(self, given: Mapping[str, Any], where: str = "") -> dict[str, Any]:
-        """Defaults overlaid with ``given``, each checked against its range."""
-        out = self.defaults()
-        where = where or f"skill {self.name}"
-        for k, v in given.items():
-            spec = None
-            for p in self.params:
-                if p.name == k:
-                    spec = p
-                    break
-            if spec is None:
-                raise ParamError(
-                    f"{where}: skill {self.name} has no parameter {k!r}; "
-                    f"its parameters are {list(self.param_names) or 'none'}"
-                )
-            out[k] = spec.check(v, where)
-        return out
+        """Defaults overlaid with ``given``, each checked against its range; raises
+        :class:`ParamError` naming ``where`` (a state, say) and every problem."""
+        values, problems = param_problems(self.name, self.params, given)
+        if problems:
+            raise ParamError((f"{where}: " if where else "") + "; ".join(
+                p.message for p in problems))
+        return values
 
     def access(self) -> Access:
         return Access(self.name, self.reads, self.writes)
