@@ -65,15 +65,12 @@ class State:
 
 @dataclass(frozen=True)
 class Source:
-    """Where an FSA came from, in plain data: the file's path and the positions of its keys
-    (errors point at lines), its text (a writer that keeps the file's comments and layout
-    reads it again), and the states renamed since (old name -> new), so that such a writer
-    tells a renamed state from a new one."""
+    """Where an FSA came from, in plain data: the file's path and the positions of its keys,
+    so that errors point at lines. A file format's reader may hand a subclass that also
+    keeps what its writer needs (:class:`skillcompose.fsafile.FileOrigin`)."""
 
     path: str | None
     positions: Mapping[tuple[str, ...], tuple[int, int]] = field(default_factory=dict)
-    text: str | None = None
-    renames: Mapping[str, str] = field(default_factory=dict)
 
     def where(self, *keys: str) -> tuple[int | None, int | None]:
         """1-based (line, column) of the deepest known key on the path ``keys``."""
@@ -82,6 +79,10 @@ class Source:
             if pos is not None:
                 return pos
         return None, None
+
+    def renamed(self, old: str, new: str) -> Source:
+        """This source once state ``old`` is called ``new`` (a writer's handle notes it)."""
+        return self
 
 
 @dataclass(frozen=True)
@@ -293,14 +294,9 @@ class FSA:
         for k, st in self.states.items():
             tr = {o: (new if t == old else t) for o, t in st.transitions.items()}
             states[new if k == old else k] = dataclasses.replace(st, transitions=tr)
-        source = self.source
-        if source is not None:
-            renames = {k: (new if v == old else v) for k, v in source.renames.items()}
-            if old not in source.renames.values():
-                renames[old] = new
-            source = dataclasses.replace(source, renames=renames)
         return self.replace(
-            states=states, start=new if self.start == old else self.start, source=source
+            states=states, start=new if self.start == old else self.start,
+            source=self.source and self.source.renamed(old, new),
         )
 
     def _state(self, name: str) -> State:

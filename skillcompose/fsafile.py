@@ -44,6 +44,7 @@ import math
 import os
 import re
 from collections.abc import Collection, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -61,6 +62,7 @@ from ruamel.yaml.events import (
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
+from ruamel.yaml.representer import RoundTripRepresenter
 
 from .errors import FSAFileError, FSAValidationError, Problem
 from .files import atomic_write
@@ -661,7 +663,7 @@ class _Reader:
         if "states" in top:
             states = self.read_states(*top["states"])
         self.raise_if_problems()
-        source = Source(self.path, dict(self.positions), self.text)
+        source = FileOrigin(self.path, dict(self.positions), self.text, root=root)
         try:
             return FSA(states, start, terminals, step_limit, name, meta, source)
         except FSAValidationError as exc:
@@ -775,10 +777,10 @@ def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None 
 
     With a ``registry``, parameters of new states carry their unit and range as comments.
     """
-    source = fsa.source
-    doc = _document(source.text) if source is not None and source.text is not None else None
-    if isinstance(doc, CommentedMap) and source is not None:
-        _sync_document(doc, fsa, registry, source.renames)
+    origin = fsa.source
+    doc = origin.document() if isinstance(origin, FileOrigin) else None
+    if isinstance(doc, CommentedMap) and isinstance(origin, FileOrigin):
+        _sync_document(doc, fsa, registry, origin.renames)
     else:
         doc = _new_document(fsa, registry, header)
     return _dump(doc)
@@ -789,8 +791,7 @@ def in_layout_of(fsa: FSA, seed: FSA, keep: Collection[str], header: str) -> FSA
     named in ``keep`` keep their text and comments there, the others are written afresh,
     and the file starts with the comment ``header``. ``fsa`` itself if ``seed`` has no file.
     """
-    source = seed.source
-    doc = _document(source.text) if source is not None and source.text is not None else None
+    doc = seed.source.document() if isinstance(seed.source, FileOrigin) else None
     if not isinstance(doc, CommentedMap):
         return fsa
     kept = doc.get("states")
@@ -798,12 +799,34 @@ def in_layout_of(fsa: FSA, seed: FSA, keep: Collection[str], header: str) -> FSA
         for gone in [k for k in kept if k not in keep]:
             del kept[gone]
     doc.yaml_set_start_comment(header)
-    return fsa.replace(source=Source(None, {}, _dump(doc)))
+    return fsa.replace(source=FileOrigin(None, {}, _dump(doc)))
 
 
-def _document(text: str) -> Any:
-    """The round-trip document (comments, order, formatting) of a text this module read."""
-    return YAML(typ="rt").load(text)
+@dataclass(frozen=True)
+class FileOrigin(Source):
+    """The file layer's handle on the text an FSA was read from, owned by the writer: the
+    text, the states renamed since (old -> new, so that a save tells a renamed state from a
+    new one) and the node tree of the reader's one parse, from which each save builds the
+    round-trip document (comments, order, formatting) without parsing again."""
+
+    text: str = ""
+    renames: Mapping[str, str] = field(default_factory=dict)
+    root: Node | None = field(default=None, compare=False, repr=False)
+
+    def renamed(self, old: str, new: str) -> FileOrigin:
+        renames = {k: (new if v == old else v) for k, v in self.renames.items()}
+        if old not in self.renames.values():
+            renames[old] = new
+        return dataclasses.replace(self, renames=renames)
+
+    def document(self) -> Any:
+        """A fresh round-trip document of the text (the reader's nodes, else a parse)."""
+        yaml = YAML(typ="rt")
+        return yaml.load(self.text) if self.root is None else \
+            yaml.constructor.construct_document(self.root)
+
+    def __reduce__(self) -> tuple[Any, ...]:  # a copy sent elsewhere parses the text again
+        return FileOrigin, (self.path, self.positions, self.text, self.renames)
 
 
 def _dump(doc: Any) -> str:
@@ -918,13 +941,11 @@ def _emits_exactly(v: Any) -> bool:
     """
     if not isinstance(v, float) or type(v) is float:
         return True
-    buf = io.StringIO()
-    _yaml_out().dump({"v": v}, buf)
     try:
-        back = YAML(typ="safe").load(buf.getvalue())["v"]
+        back = _to_float(RoundTripRepresenter().represent_scalar_float(v).value)
     except Exception:
         return False
-    return bool(back == float(v)) or (math.isnan(back) and math.isnan(float(v)))
+    return back == float(v) or (math.isnan(back) and math.isnan(float(v)))
 
 
 def _equal(a: Any, b: Any) -> bool:
