@@ -8,6 +8,7 @@ The public API; examples and user code import from here::
 
 from __future__ import annotations
 
+from .activation import RUNNING, Activation
 from .blackboard import DELETED, Access, Blackboard, diff
 from .errors import (
     BlackboardAccessError,
@@ -26,10 +27,12 @@ from .errors import (
 )
 from .executor import (
     CompiledFSA,
+    FSARun,
     RunResult,
     TraceStep,
     compile_fsa,
     run_fsa,
+    run_ticking,
     summarize,
     trial_rngs,
     trial_seeds,
@@ -49,7 +52,6 @@ from .params import Choice, Param, ParamSpec
 from .registry import Registry
 from .skill import Skill, SkillSpec, skill
 from .task import Task, TaskError, TaskRef, Trial, load_task, trials
-from .ticking import RUNNING, Activation, FSARun, run_ticking
 
 __version__ = "0.1.0"
 

@@ -162,7 +162,7 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
             maps ``success`` to ``SUCCESS``.
         seed: activation ``k`` of this behaviour runs with the ``k``-th child of ``seed``.
         blackboard: the FSA's own blackboard (default: a new one); kept across activations.
-        time_limits: state → wall-clock limit [s] (:mod:`skillcompose.ticking`).
+        time_limits: state → wall-clock limit [s] (:mod:`skillcompose.executor`).
         show_states: list the FSA's states as display-only children, so py_trees' renderings
             (``py_trees.display.ascii_tree``) show the FSA inside the tree. They are never
             ticked; the running state shows ``RUNNING``.
@@ -373,6 +373,7 @@ class TreeSkill(Skill):
 
     __slots__ = ("_setup", "bridge", "factory", "tree")
     kind = "tree"
+    long_running = True
 
     def __init__(
         self, spec: SkillSpec, source: TreeSource, bridge: BlackboardBridge
@@ -385,10 +386,6 @@ class TreeSkill(Skill):
             self.tree, self.factory = None, source
         self.bridge = bridge
         self._setup: set[int] = set()
-
-    @property
-    def long_running(self) -> bool:
-        return True
 
     def starter(self, backend: str | None = None) -> Starter | None:
         return self._start

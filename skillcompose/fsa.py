@@ -54,7 +54,7 @@ class State:
     """One state: a skill, its parameters (in the skill's units) and its transitions.
 
     ``time_limit`` [s], when set, bounds the state's wall-clock time (for hardware skills that
-    can hang): a state that overruns ends with ``timeout`` (see :mod:`skillcompose.ticking`).
+    can hang): a state that overruns ends with ``timeout`` (see :mod:`skillcompose.executor`).
     """
 
     skill: str

@@ -854,11 +854,15 @@ def _yaml_out() -> YAML:
 
 
 def _py(value: Any) -> Any:
-    """Plain Python values for the emitter (numpy scalars become floats/ints)."""
+    """Plain Python values: of an FSA for the emitter (numpy scalars become floats/ints), of
+    a document for comparing (the YAML library's scalars become bool/int/float/str)."""
     if isinstance(value, Mapping):
         return {str(k): _py(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_py(v) for v in value]
+    for kind in (bool, int, float, str):
+        if isinstance(value, kind):
+            return kind(value)
     if hasattr(value, "item") and callable(value.item):  # numpy scalar
         return value.item()
     return value
@@ -926,7 +930,7 @@ def _new_document(fsa: FSA, registry: Registry | None, header: str | None) -> Co
 def _set(m: CommentedMap, key: str, value: Any) -> None:
     """Assign only when the value changed, so untouched values keep their formatting."""
     value = _py(value)
-    if key in m and _equal(_plain(m[key]), value) and _emits_exactly(m[key]):
+    if key in m and _equal(_py(m[key]), value) and _emits_exactly(m[key]):
         return
     if isinstance(value, list):  # terminals, vector parameters: one line (or a few)
         value = _flow_list(value)
@@ -954,22 +958,6 @@ def _equal(a: Any, b: Any) -> bool:
     return bool(a == b and type(a) is type(b)) or (
         isinstance(a, (dict, list)) and a == b
     )
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, Mapping):
-        return {str(k): _plain(x) for k, x in v.items()}
-    if isinstance(v, list):
-        return [_plain(x) for x in v]
-    if isinstance(v, bool):
-        return bool(v)
-    if isinstance(v, int):
-        return int(v)
-    if isinstance(v, float):
-        return float(v)
-    if isinstance(v, str):
-        return str(v)
-    return v
 
 
 def _rename_key(m: CommentedMap, old: str, new: str) -> None:

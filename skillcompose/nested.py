@@ -29,6 +29,7 @@ class FSASkill(Skill):
 
     __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
     kind = "fsa"
+    long_running = True
 
     def __init__(
         self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str
@@ -38,10 +39,6 @@ class FSASkill(Skill):
         self.registry = registry
         self.timeout_outcome = timeout_outcome
         self._compiled: dict[str, CompiledFSA] = {}
-
-    @property
-    def long_running(self) -> bool:
-        return True
 
     def compiled(self, backend: str | None = None) -> CompiledFSA:
         """The nested FSA compiled for ``backend`` (once per backend)."""

@@ -118,7 +118,8 @@ class Skill:
     __slots__ = ("backend", "impl", "spec")
     kind = "function"
     """``function``, ``instance`` (callable class), ``ticking``, ``generator``, ..."""
-    is_class = False
+    long_running = False
+    """True for skills ticked until they finish (start/tick classes, generators, FSAs)."""
 
     def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         self.spec = spec
@@ -135,10 +136,6 @@ class Skill:
         twin.backend = backend
         return twin
 
-    @property
-    def long_running(self) -> bool:
-        """True for skills ticked until they finish (start/tick classes, generators)."""
-        return False
 
     def starter(self, backend: str | None = None) -> Starter | None:
         """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
@@ -186,7 +183,6 @@ class InstanceSkill(Skill):
 
     __slots__ = ("_instance",)
     kind = "instance"
-    is_class = True
 
     def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         super().__init__(spec, impl, backend=backend)
@@ -218,11 +214,7 @@ class TickingSkill(Skill):
 
     __slots__ = ()
     kind = "ticking"
-    is_class = True
-
-    @property
-    def long_running(self) -> bool:
-        return True
+    long_running = True
 
     def starter(self, backend: str | None = None) -> Starter:
         return functools.partial(start_instance, self.impl)
@@ -233,10 +225,7 @@ class GeneratorSkill(Skill):
 
     __slots__ = ()
     kind = "generator"
-
-    @property
-    def long_running(self) -> bool:
-        return True
+    long_running = True
 
     def starter(self, backend: str | None = None) -> Starter:
         return functools.partial(start_generator, self.impl, self.name)

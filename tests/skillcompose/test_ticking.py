@@ -13,16 +13,17 @@ from hypothesis import strategies as st
 
 from skillcompose import (
     FSA,
+    RUNNING,
     Blackboard,
     ParamError,
     Registry,
     SkillDefinitionError,
     State,
     compile_fsa,
+    run_ticking,
     skill,
 )
 from skillcompose.errors import SkillProtocolError
-from skillcompose.ticking import RUNNING, run_ticking
 
 from .mixed_skills import Calls, as_skill, make_registry, mixed_fsa
 
