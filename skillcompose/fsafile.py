@@ -39,6 +39,7 @@ with its file, line and column, the state and key, what was expected and the fix
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import io
 import math
 import os
@@ -517,19 +518,9 @@ class _Reader:
                       f"got {_node_kind(node)}", state=state, fix=fix)
             return None
         out: dict[str, tuple[Node, Node]] = {}
-        for k, v in node.value:
-            if not isinstance(k, ScalarNode):
-                self.fail(k, f"{what}: keys must be plain names", state=state)
-                continue
+        for k, v in node.value:  # plain, distinct keys: check_keys saw to that
             key = str(self.scalar(k)) if k.value != "" else ""
-            if key in out:
-                first = out[key][0].start_mark.line + 1
-                self.fail(k, f"{what}: key {key!r} appears twice (first on line {first})",
-                          state=state, key=key, fix="keep one of them")
-                continue
             if allowed is not None and key not in allowed:
-                import difflib
-
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f"did you mean {close[0]!r}?" if close else \
                     f"allowed keys are {', '.join(allowed)}"
