@@ -20,7 +20,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip
 
 __all__ = [
     "MAX_SEED",
@@ -53,7 +53,7 @@ class UsageError(SkillcomposeError, ValueError):
 
 
 def _shown(text: str) -> str:
-    return repr(text if len(text) <= 40 else text[:37] + "...")
+    return repr(clip(text))
 
 
 def whole(low: int, high: int) -> Callable[[str], int]:

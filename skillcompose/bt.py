@@ -204,11 +204,8 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
         self._seeds = (
             seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         )
-        reads: set[str] = set()
-        writes: set[str] = set()
-        for impl, _ in compiled.impls:
-            reads |= impl.spec.reads
-            writes |= impl.spec.writes
+        reads = frozenset().union(*(impl.spec.reads for impl, _ in compiled.impls))
+        writes = frozenset().union(*(impl.spec.writes for impl, _ in compiled.impls))
         ident = compiled.fsa.name or label.replace(" ", "_")
         self.bridge = BlackboardBridge(
             f"FSA {label}", to_tree=writes, from_tree=reads | writes,

@@ -19,7 +19,7 @@ import numpy as np
 
 from .arguments import MAX_TRIALS, UsageError, module_or_file, output_file, seed, setting, whole
 from .blackboard import DELETED
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip
 from .executor import compile_fsa, error_summary, summarize
 from .fsafile import load_fsa
 from .progress import progress_bar
@@ -249,10 +249,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _short(v: Any) -> str:
-    if v is DELETED:
-        return "∅"
-    text = repr(v)
-    return text if len(text) <= 60 else text[:57] + "..."
+    return "∅" if v is DELETED else clip(repr(v), 60)
 
 
 def _print_trace(result: Any) -> None:

@@ -20,8 +20,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .errors import FSAValidationError, Problem, UnknownSkillError
-from .params import _short, param_problems, time_limit_problem
+from .errors import FSAValidationError, Problem, UnknownSkillError, clip
+from .params import param_problems, time_limit_problem
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -331,8 +331,9 @@ def step_limit_problem(value: Any) -> Problem | None:
     """None when ``value`` is a valid step limit (a whole number in [1, MAX_STEP_LIMIT])."""
     if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= MAX_STEP_LIMIT:
         return None
-    return Problem(f"step_limit must be a positive whole number, got {_short(value)} (at most "
-                   f"{MAX_STEP_LIMIT})", key="step_limit", fix="for example `step_limit: 20`")
+    return Problem(f"step_limit must be a positive whole number, got {clip(repr(value), 60)} "
+                   f"(at most {MAX_STEP_LIMIT})", key="step_limit",
+                   fix="for example `step_limit: 20`")
 
 
 def _fix_target(target: str, states: list[str], terminals: tuple[str, ...]) -> str:

@@ -65,7 +65,7 @@ from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
 from ruamel.yaml.representer import RoundTripRepresenter
 
-from .errors import FSAFileError, FSAValidationError, Problem
+from .errors import FSAFileError, FSAValidationError, Problem, clip
 from .files import atomic_write
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step_limit_problem
 from .params import time_limit_problem
@@ -297,7 +297,7 @@ class _BadScalar(ValueError):
 def _to_int(text: str) -> int:
     fix = "write a whole number such as 3, or quote it to keep it as text"
     if not _INT_RE.fullmatch(text):
-        raise _BadScalar(f"{_clip(text)!r} is not a whole number", fix)
+        raise _BadScalar(f"{clip(text)!r} is not a whole number", fix)
     s = text.replace("_", "")
     sign = -1 if s[0] == "-" else 1
     body = s.lstrip("+-")
@@ -307,7 +307,7 @@ def _to_int(text: str) -> int:
     value = None if len(digits) > 64 else sign * int(digits, base)
     if value is None or not _INT_MIN <= value <= _INT_MAX:
         raise _BadScalar(
-            f"whole number {_clip(text)} is out of range [-2**63, 2**63 - 1]",
+            f"whole number {clip(text)} is out of range [-2**63, 2**63 - 1]",
             "use a smaller number, or quote it to keep it as text",
         )
     return value
@@ -320,11 +320,11 @@ def _to_float(text: str) -> float:
         return math.nan
     fix = "write a number such as 0.5, 1e-3, .inf or .nan, or quote it to keep it as text"
     if not _FLOAT_RE.fullmatch(text):
-        raise _BadScalar(f"{_clip(text)!r} is not a number", fix)
+        raise _BadScalar(f"{clip(text)!r} is not a number", fix)
     value = float(text.replace("_", ""))
     if math.isinf(value):
         raise _BadScalar(
-            f"number {_clip(text)} is too large (beyond ±1.8e308)",
+            f"number {clip(text)} is too large (beyond ±1.8e308)",
             "write .inf or -.inf for infinity, or a smaller number",
         )
     return value
@@ -374,10 +374,6 @@ def _check_directives(text: str) -> None:
                 f"%YAML {m.group(1) or ''} documents are not read: FSA files are YAML 1.2",
                 fix="remove the %YAML line", line=line, column=col,
             ))
-
-
-def _clip(text: str, n: int = 40) -> str:
-    return text if len(text) <= n else text[:n - 3] + "..."
 
 
 class _Reader:
@@ -439,7 +435,7 @@ class _Reader:
                 self.fail(k, f"{label}: keys must be plain names, got {_node_kind(k)}",
                           fix="write the key as text")
                 continue
-            stack.append((v, prefix + _clip(str(k.value), 30)))
+            stack.append((v, prefix + clip(str(k.value), 30)))
             if not self.convert(k, label, constructor):
                 continue
             value = self.values[id(k)]
@@ -447,7 +443,7 @@ class _Reader:
             nan = isinstance(value, float) and math.isnan(value)
             first = by_text.get(text) or (None if nan else by_value.get(value))
             if first is not None:
-                self.fail(k, f"{label}: key {_clip(text)!r} appears twice (first on line "
+                self.fail(k, f"{label}: key {clip(text)!r} appears twice (first on line "
                           f"{first.start_mark.line + 1})", key=text, fix="keep one of them")
                 continue
             by_text[text] = k
@@ -463,12 +459,12 @@ class _Reader:
         try:
             if name == "null":
                 if v not in _NULLS:
-                    raise _BadScalar(f"{_clip(v)!r} is not empty (!!null)",
+                    raise _BadScalar(f"{clip(v)!r} is not empty (!!null)",
                                      "remove the !!null tag or the value")
                 value: Any = None
             elif name == "bool":
                 if v not in _BOOLS:
-                    raise _BadScalar(f"{_clip(v)!r} is not true or false",
+                    raise _BadScalar(f"{clip(v)!r} is not true or false",
                                      "write true or false")
                 value = _BOOLS[v]
             elif name == "int":
@@ -479,7 +475,7 @@ class _Reader:
                 try:
                     constructor.construct_yaml_timestamp(node)
                 except Exception:
-                    raise _BadScalar(f"{_clip(v)!r} is not a valid date",
+                    raise _BadScalar(f"{clip(v)!r} is not a valid date",
                                      "quote it to keep it as text") from None
                 value = v
             elif name in ("value", "yaml"):  # `=` and friends: text
@@ -594,7 +590,7 @@ class _Reader:
             mark = parser.last_mark if parser is not None else None
             line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
             raise _Refused(Problem(
-                f"not valid YAML: {type(exc).__name__}: {_clip(str(exc), 80)}",
+                f"not valid YAML: {type(exc).__name__}: {clip(str(exc), 80)}",
                 fix="check the YAML near this line", line=line, column=col,
             )) from None
         self.problems.extend(parser.problems)

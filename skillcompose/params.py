@@ -23,7 +23,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from .errors import ParamError, Problem
+from .errors import ParamError, Problem, clip
 
 __all__ = [
     "Choice", "Param", "ParamKind", "ParamSpec", "Scale", "param_problems", "time_limit_problem",
@@ -139,7 +139,7 @@ class ParamSpec:
         assert n is not None and self.low is not None and self.high is not None
         head = f"{prefix}parameter {self.name!r} is not valid; expected {self.describe_range()}"
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
-            raise ParamError(f"{head}, got {_short(value)}; write a list such as [0.1, -0.5, ...]")
+            raise ParamError(f"{head}, got {_repr(value)}; write a list such as [0.1, -0.5, ...]")
         if len(value) != n:
             raise ParamError(
                 f"{head}, got a list of {len(value)}; give exactly {n} numbers (the skill "
@@ -149,7 +149,7 @@ class ParamSpec:
         for i, v in enumerate(value):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or \
                     not math.isfinite(float(v)):
-                raise ParamError(f"{head}; item {i} = {_short(v)} is not a finite number")
+                raise ParamError(f"{head}; item {i} = {_repr(v)} is not a finite number")
             if not self.low <= v <= self.high:
                 raise ParamError(
                     f"{head}; item {i} = {v!r} is outside; set it between {self.low:g} and "
@@ -322,9 +322,8 @@ def _check_range(decl: Param, where: str) -> None:
         raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
 
 
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+def _repr(value: Any) -> str:
+    return clip(repr(value), 60)
 
 
 class _Missing:

@@ -45,7 +45,7 @@ import numpy as np
 
 from .arguments import MAX_TRIALS, MAX_WORKERS, module_or_file, output_file, seed, setting, whole
 from .cli import check_backend
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip
 from .executor import compile_fsa
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 from .fsafile import load_fsa
@@ -275,7 +275,7 @@ def parse_values(text: str) -> list[float]:
     forms = (f"write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. "
              f"0,0.2,0.5) of finite numbers, at most {MAX_SWEEP_POINTS} values")
     text = text.strip()
-    shown = text if len(text) <= 40 else text[:37] + "..."
+    shown = clip(text)
     try:
         if ":" in text:
             parts = text.split(":")
