@@ -49,10 +49,12 @@ def test_register_beside_the_abstract_skills() -> None:
         assert sorted(registry.backends(s.name)) == ["kinematic", "sim"]
     bound = registry.resolve("MoveBasePose", "kinematic")
     assert isinstance(bound, kw.KinematicSkill) and bound.impl is kn.move_base_pose.impl
-    assert bound.world is registry.resolve("Push", "kinematic").world  # one world per register
+    push = registry.resolve("Push", "kinematic")
+    assert isinstance(push, kw.KinematicSkill) and push.world is bound.world  # one per register
     other = Registry()
     assert kn.register(other) is not bound.world  # another registry, another world
-    assert other.resolve("Push").world is not bound.world  # type: ignore[attr-defined]
+    push = other.resolve("Push")
+    assert isinstance(push, kw.KinematicSkill) and push.world is not bound.world
     assert kn.register(Registry(), world=bound.world) is bound.world  # or the one given
 
 
