@@ -169,8 +169,13 @@ class _Refused(Exception):
         self.problem = problem
 
 
+def _at(mark: Any, problem: Problem) -> Problem:
+    """``problem`` at the 1-based position of the parser's 0-based ``mark``."""
+    return dataclasses.replace(problem, line=mark.line + 1, column=mark.column + 1)
+
+
 def _mark_problem(mark: Any, message: str, fix: str | None = None) -> Problem:
-    return Problem(message, fix=fix, line=mark.line + 1, column=mark.column + 1)
+    return _at(mark, Problem(message, fix=fix))
 
 
 class _GuardedParser(RoundTripParser):
@@ -386,19 +391,15 @@ class _Reader:
 
     # -- helpers ---------------------------------------------------------------------------
     def fail(
-        self, node: Node | None, message: str, *, state: str | None = None,
+        self, node: Node, message: str, *, state: str | None = None,
         key: str | None = None, fix: str | None = None,
     ) -> None:
-        line = col = None
-        if node is not None and node.start_mark is not None:
-            line, col = node.start_mark.line + 1, node.start_mark.column + 1
-        self.problems.append(Problem(message, state, key, fix, line, col))
+        self.report(node, Problem(message, state, key, fix))
 
     def report(self, node: Node, problem: Problem | None) -> bool:
         """Note ``problem`` (if any) at ``node``'s position; True when there was one."""
         if problem is not None:
-            self.problems.append(dataclasses.replace(
-                problem, line=node.start_mark.line + 1, column=node.start_mark.column + 1))
+            self.problems.append(_at(node.start_mark, problem))
         return problem is not None
 
     def raise_if_problems(self) -> None:

@@ -139,12 +139,9 @@ def robustness_sweep(
     values = [_check_value(v, setting) for v in p_fail]
     if not values:
         raise RobustnessError(f"no values of {setting} to sweep; give at least one")
-    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
-        raise RobustnessError(f"reps={reps!r} must be a positive whole number, e.g. 5000")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise RobustnessError(f"workers={workers!r} must be a positive whole number")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise RobustnessError(f"seed={seed!r} must be a whole number >= 0")
+    for what, count, low in (("reps", reps, 1), ("workers", workers, 1), ("seed", seed, 0)):
+        if isinstance(count, bool) or not isinstance(count, int) or count < low:
+            raise RobustnessError(f"{what}={count!r} must be a whole number >= {low}")
     ref = _task_ref(task, settings)
     machine = fsa if isinstance(fsa, FSA) else load_fsa(fsa)
     if step_limit is not None:

@@ -231,27 +231,23 @@ class GeneratorSkill(Skill):
         return functools.partial(start_generator, self.impl, self.name)
 
 
+class Declaration(typing.TypedDict, total=False):
+    """The keywords of :func:`skill`."""
+
+    name: str | None
+    outcomes: Iterable[str] | None
+    reads: KeyDecl
+    writes: KeyDecl
+    backend: str
+
+
 @typing.overload
-def skill(
-    fn: Callable[..., Any],
-    *,
-    name: str | None = None,
-    outcomes: Iterable[str] | None = None,
-    reads: KeyDecl = (),
-    writes: KeyDecl = (),
-    backend: str = "default",
-) -> Skill: ...
+def skill(fn: Callable[..., Any], **declaration: typing.Unpack[Declaration]) -> Skill: ...
 
 
 @typing.overload
 def skill(
-    fn: None = None,
-    *,
-    name: str | None = None,
-    outcomes: Iterable[str] | None = None,
-    reads: KeyDecl = (),
-    writes: KeyDecl = (),
-    backend: str = "default",
+    fn: None = None, **declaration: typing.Unpack[Declaration]
 ) -> Callable[[Callable[..., Any]], Skill]: ...
 
 
