@@ -873,23 +873,15 @@ def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | N
 
 
 def _state_map(st: State, registry: Registry | None) -> CommentedMap:
+    """A new state's mapping, its parameters' units and ranges and its time limit's unit as
+    comments."""
     m = CommentedMap()
-    m["skill"] = st.skill
-    if st.params:
-        pm = CommentedMap()
-        for k, v in st.params.items():
-            value = _py(v)
-            pm[k] = _flow_list(value) if isinstance(value, list) else value
-            c = _param_comment(registry, st.skill, k)
-            if c:
-                pm.yaml_add_eol_comment(c, k)
-        m["params"] = pm
-    tm = CommentedMap()
-    for o, t in st.transitions.items():
-        tm[o] = t
-    m["transitions"] = tm
+    _sync_state(m, st)
+    for k in st.params:
+        c = _param_comment(registry, st.skill, k)
+        if c:
+            m["params"].yaml_add_eol_comment(c, k)
     if st.time_limit is not None:
-        m["time_limit"] = st.time_limit
         m.yaml_add_eol_comment("s: a longer state ends with `timeout`", "time_limit")
     return m
 
@@ -988,27 +980,31 @@ def _sync_document(
         del states[gone]
     for sname, st in fsa.states.items():
         cur = states.get(sname)
-        if not isinstance(cur, CommentedMap):
+        if isinstance(cur, CommentedMap):
+            _sync_state(cur, st)
+        else:
             states[sname] = _state_map(st, registry)
-            continue
-        _set(cur, "skill", st.skill)
-        if st.params or "params" in cur:
-            pm = cur.get("params")
-            if not isinstance(pm, CommentedMap):
-                pm = CommentedMap()
-                cur.insert(list(cur.keys()).index("skill") + 1 if "skill" in cur else 0,
-                           "params", pm)
-            _sync_map(pm, st.params)
-        tm = cur.get("transitions")
-        if not isinstance(tm, CommentedMap):
-            tm = CommentedMap()
-            cur["transitions"] = tm
-        _sync_map(tm, st.transitions)
-        if st.time_limit is not None:
-            _set(cur, "time_limit", st.time_limit)
-        elif "time_limit" in cur:
-            del cur["time_limit"]
     if fsa.meta or "meta" in doc:
         if not isinstance(doc.get("meta"), CommentedMap):
             doc["meta"] = CommentedMap()
         _sync_map(doc["meta"], fsa.meta)
+
+
+def _sync_state(cur: CommentedMap, st: State) -> None:
+    _set(cur, "skill", st.skill)
+    if st.params or "params" in cur:
+        pm = cur.get("params")
+        if not isinstance(pm, CommentedMap):
+            pm = CommentedMap()
+            cur.insert(list(cur.keys()).index("skill") + 1 if "skill" in cur else 0,
+                       "params", pm)
+        _sync_map(pm, st.params)
+    tm = cur.get("transitions")
+    if not isinstance(tm, CommentedMap):
+        tm = CommentedMap()
+        cur["transitions"] = tm
+    _sync_map(tm, st.transitions)
+    if st.time_limit is not None:
+        _set(cur, "time_limit", st.time_limit)
+    elif "time_limit" in cur:
+        del cur["time_limit"]
