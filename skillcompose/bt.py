@@ -369,7 +369,6 @@ class TreeSkill(Skill):
     """A py_trees subtree as a skill: ``success`` / ``failure`` from its final status."""
 
     __slots__ = ("_setup", "bridge", "factory", "tree")
-    kind = "tree"
     long_running = True
 
     def __init__(

@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -642,12 +643,9 @@ def trial_rngs(
 
 def summarize(results: Sequence[RunResult]) -> dict[str, Any]:
     """Outcome counts and mean steps over many runs."""
-    counts: dict[str, int] = {}
-    for r in results:
-        counts[r.outcome] = counts.get(r.outcome, 0) + 1
     n = len(results)
     return {
         "trials": n,
-        "outcomes": dict(sorted(counts.items(), key=lambda kv: -kv[1])),
+        "outcomes": dict(Counter(r.outcome for r in results).most_common()),
         "mean_steps": (sum(r.steps for r in results) / n) if n else 0.0,
     }

@@ -700,26 +700,23 @@ class _Reader:
         if "params" in fields:
             pnode = fields["params"][1]
             self.mark(("states", sname, "params"), fields["params"][0])
-            if isinstance(pnode, ScalarNode) and str(pnode.tag).endswith(":null"):
-                pass
-            else:
-                pmap = self.mapping(pnode, f"state {sname} params", None, state=sname,
-                                    fix="write `params: {name: value}`")
-                for pname, (_, pv) in (pmap or {}).items():
-                    self.mark(("states", sname, "params", pname), pv)
-                    if isinstance(pv, SequenceNode) and all(
-                        isinstance(item, ScalarNode) for item in pv.value
-                    ):  # a vector parameter: one flat list of numbers
-                        params[pname] = tuple(self.scalar(item) for item in pv.value)
-                        continue
-                    if not isinstance(pv, ScalarNode):
-                        self.fail(pv, f"parameter {pname!r} must be a single value "
-                                  f"(number, true/false or text) or, for a vector "
-                                  f"parameter, a flat list of numbers; got {_node_kind(pv)}",
-                                  state=sname, key=pname)
-                        ok = False
-                        continue
+            empty = isinstance(pnode, ScalarNode) and str(pnode.tag).endswith(":null")
+            pmap = None if empty else self.mapping(
+                pnode, f"state {sname} params", None, state=sname,
+                fix="write `params: {name: value}`")
+            for pname, (_, pv) in (pmap or {}).items():
+                self.mark(("states", sname, "params", pname), pv)
+                if isinstance(pv, SequenceNode) and all(
+                    isinstance(item, ScalarNode) for item in pv.value
+                ):  # a vector parameter: one flat list of numbers
+                    params[pname] = tuple(self.scalar(item) for item in pv.value)
+                elif isinstance(pv, ScalarNode):
                     params[pname] = self.scalar(pv)
+                else:
+                    self.fail(pv, f"parameter {pname!r} must be a single value (number, "
+                              "true/false or text) or, for a vector parameter, a flat list "
+                              f"of numbers; got {_node_kind(pv)}", state=sname, key=pname)
+                    ok = False
         transitions: dict[str, str] = {}
         if "transitions" in fields:
             self.mark(("states", sname, "transitions"), fields["transitions"][0])
@@ -887,19 +884,11 @@ def _state_map(st: State, registry: Registry | None) -> CommentedMap:
 
 
 def _new_document(fsa: FSA, registry: Registry | None, header: str | None) -> CommentedMap:
-    doc = CommentedMap()
-    doc["format"] = FORMAT_VERSION
-    if fsa.name:
-        doc["name"] = fsa.name
-    doc["start"] = fsa.start
-    doc["step_limit"] = fsa.step_limit
-    doc["terminals"] = _flow_list(list(fsa.terminals))
-    states = CommentedMap()
-    for sname, st in fsa.states.items():
-        states[sname] = _state_map(st, registry)
-    doc["states"] = states
+    # the keys a new file always has, in order, for the sync to fill; meta as plain data
+    doc = CommentedMap((k, None) for k in TOP_LEVEL_KEYS[:5] if k != "name" or fsa.name)
     if fsa.meta:
-        doc["meta"] = _py(fsa.meta)
+        doc["states"], doc["meta"] = CommentedMap(), _py(fsa.meta)
+    _sync_document(doc, fsa, registry, {})
     text = _HEADER if header is None else header
     if text:
         doc.yaml_set_start_comment(text)
@@ -985,7 +974,7 @@ def _sync_document(
         else:
             states[sname] = _state_map(st, registry)
     if fsa.meta or "meta" in doc:
-        if not isinstance(doc.get("meta"), CommentedMap):
+        if not isinstance(doc.get("meta"), dict):
             doc["meta"] = CommentedMap()
         _sync_map(doc["meta"], fsa.meta)
 

@@ -28,7 +28,6 @@ class FSASkill(Skill):
     """A skill whose implementation is an FSA: long-running, ticked state by state."""
 
     __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
-    kind = "fsa"
     long_running = True
 
     def __init__(

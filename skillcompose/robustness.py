@@ -35,6 +35,7 @@ import math
 import multiprocessing
 import os
 import sys
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -176,10 +177,7 @@ def robustness_sweep(
         mine = parts[k * per_value:(k + 1) * per_value]
         fit = np.concatenate([p[0] for p in mine])
         steps = np.concatenate([p[1] for p in mine])
-        counts: dict[str, int] = {}
-        for p in mine:
-            for o, n in p[2].items():
-                counts[o] = counts.get(o, 0) + n
+        counts = sum((p[2] for p in mine), Counter[str]())
         rows.append(SweepRow(
             setting=setting,
             value=v,
@@ -208,7 +206,7 @@ class _Chunk:
     task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
 
 
-def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int]:
+def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
     task = _build(job.ref, job.setting, job.value)
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
@@ -216,7 +214,7 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
     n = job.stop - job.start
     fit = np.empty(n)
     steps = np.empty(n, dtype=np.int64)
-    counts: dict[str, int] = {}
+    counts = Counter[str]()
     solved = 0
     is_solved = task.solved
     for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n,
@@ -224,7 +222,7 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
         fit[k] = f
         solved += is_solved(f)
         steps[k] = result.steps
-        counts[result.outcome] = counts.get(result.outcome, 0) + 1
+        counts[result.outcome] += 1
     return fit, steps, counts, solved
 
 

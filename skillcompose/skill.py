@@ -116,8 +116,6 @@ class Skill:
     """
 
     __slots__ = ("backend", "impl", "spec")
-    kind = "function"
-    """``function``, ``instance`` (callable class), ``ticking``, ``generator``, ..."""
     long_running = False
     """True for skills ticked until they finish (start/tick classes, generators, FSAs)."""
 
@@ -182,7 +180,6 @@ class InstanceSkill(Skill):
     """A class with ``__call__``: one instance, made on first use, runs every activation."""
 
     __slots__ = ("_instance",)
-    kind = "instance"
 
     def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         super().__init__(spec, impl, backend=backend)
@@ -213,7 +210,6 @@ class TickingSkill(Skill):
     """A class with ``start`` / ``tick`` / ``cancel``: a fresh instance per activation."""
 
     __slots__ = ()
-    kind = "ticking"
     long_running = True
 
     def starter(self, backend: str | None = None) -> Starter:
@@ -224,7 +220,6 @@ class GeneratorSkill(Skill):
     """A generator function that yields ``"running"`` until it returns its outcome."""
 
     __slots__ = ()
-    kind = "generator"
     long_running = True
 
     def starter(self, backend: str | None = None) -> Starter:
@@ -301,14 +296,9 @@ def _keys(decl: KeyDecl, what: str, owner: str) -> tuple[frozenset[str], dict[st
         raise SkillDefinitionError(
             f"skill {owner}: {what}={decl!r} is a string; write {what}=({decl!r},)"
         )
-    types: dict[str, Any] = {}
-    if isinstance(decl, Mapping):
-        for k, t in decl.items():
-            if t is not None:
-                types[k] = t
-        keys = frozenset(decl)
-    else:
-        keys = frozenset(decl)
+    types = {k: t for k, t in decl.items() if t is not None} if isinstance(decl, Mapping) \
+        else {}
+    keys = frozenset(decl)
     for k in keys:
         if not isinstance(k, str) or not k:
             raise SkillDefinitionError(f"skill {owner}: blackboard key {k!r} must be a string")
@@ -325,18 +315,15 @@ def _make_skill(
 ) -> Skill:
     is_class = inspect.isclass(obj)
     outcome_source: Any = None  # the function whose return annotation lists the outcomes
-    if is_class and _is_ticking_class(obj):
-        tick = getattr(obj, "tick", None)
-        if not callable(getattr(obj, "start", None)) or not callable(tick):
+    tick = getattr(obj, "tick", None) if is_class else None
+    if callable(tick):
+        if not callable(getattr(obj, "start", None)):
             raise SkillDefinitionError(
                 f"class {obj.__name__}: a long-running skill defines both "
                 "`def start(self, bb, rng, *, params...) -> None` and "
                 "`def tick(self, bb, rng) -> Literal['running', 'success', ...]`"
             )
-        tick_args = [
-            p.name for p in inspect.signature(tick).parameters.values()
-            if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
-        ][1:]
+        tick_args = [p.name for p in _positional(tick)][1:]
         if len(tick_args) != 2:
             raise SkillDefinitionError(
                 f"class {obj.__name__}: tick must be `def tick(self, bb, rng)`, found "
@@ -371,10 +358,7 @@ def _make_skill(
 
     sig = inspect.signature(func)
     hints = _annotations(func)
-    positional = [
-        p for p in sig.parameters.values()
-        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
-    ][skip:]
+    positional = _positional(func)[skip:]
     if len(positional) != 2:
         raise SkillDefinitionError(
             f"skill {skill_name}: signature must be (bb, rng, *, params...), "
@@ -465,8 +449,9 @@ def _plain(value: Any) -> Any:
     return tuple(np.asarray(value).ravel().tolist()) if isinstance(value, np.ndarray) else value
 
 
-def _is_ticking_class(cls: type) -> bool:
-    return callable(getattr(cls, "tick", None))
+def _positional(func: Callable[..., Any]) -> list[inspect.Parameter]:
+    return [p for p in inspect.signature(func).parameters.values()
+            if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
 
 
 def _annotations(func: Any) -> dict[str, Any]:
