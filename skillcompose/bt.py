@@ -289,10 +289,9 @@ class _StateView(py_trees.behaviour.Behaviour):
 def _status_map(
     given: Mapping[str, Status | str] | None, compiled: CompiledFSA, owner: str
 ) -> dict[str, Status]:
-    out: dict[str, Status] = {"success": Status.SUCCESS}
     if given is None:
-        return out
-    out = {}
+        return {"success": Status.SUCCESS}
+    out: dict[str, Status] = {}
     valid = [*compiled.terminals, *RESERVED_OUTCOMES]
     for outcome, status in given.items():
         if outcome not in valid:

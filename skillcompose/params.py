@@ -18,10 +18,11 @@ range: ``n`` genes of the genome, one list in a file.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args, get_origin
 
 from .errors import ParamError, Problem, clip
 
@@ -263,8 +264,6 @@ def make_param_spec(
     name: str, base_type: Any, decl: Param | Choice | None, default: Any, owner: str
 ) -> ParamSpec:
     """Build a :class:`ParamSpec` from a signature entry; raise ``ParamError`` if unusable."""
-    from typing import get_args, get_origin
-
     where = f"skill {owner}, parameter {name!r}"
     if isinstance(decl, Choice) or get_origin(base_type) is Literal:
         options: Sequence[Any] = decl.options if isinstance(decl, Choice) else get_args(base_type)
@@ -309,8 +308,7 @@ def make_param_spec(
         )
     if default is _MISSING:
         raise ParamError(f"{where}: needs a default value (evolution and files may omit it)")
-    spec = ParamSpec(**{**spec.__dict__, "default": spec.check(default, f"skill {owner}")})
-    return spec
+    return dataclasses.replace(spec, default=spec.check(default, f"skill {owner}"))
 
 
 def _check_range(decl: Param, where: str) -> None:
