@@ -611,9 +611,7 @@ def run_ticking(
     period: float = 0.0,
 ) -> RunResult:
     """Run once in tick-wise mode, ticking until the end: the one-call form of :class:`FSARun`."""
-    run = FSARun(
-        compiled, bb, rng, trace=trace, propagate=propagate, time_limits=time_limits
-    )
+    run = compiled.start(bb, rng, trace=trace, propagate=propagate, time_limits=time_limits)
     return run.run(max_ticks=max_ticks, period=period)
 
 
