@@ -9,17 +9,21 @@ matplotlib with a layered layout of its own.
 
 from __future__ import annotations
 
+import io
 import shutil
 import subprocess
 from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .errors import SkillcomposeError
-from .fsa import FSA, State
 
-__all__ = ["DrawingError", "draw_matplotlib", "layers", "render", "to_dot", "to_mermaid"]
+if TYPE_CHECKING:  # drawing needs only an FSA's attributes: fsa.py may import this module
+    from .fsa import FSA, State
+
+__all__ = ["DrawingError", "draw_matplotlib", "layers", "render", "to_dot", "to_mermaid",
+           "to_svg"]
 
 
 class DrawingError(SkillcomposeError):
@@ -142,6 +146,20 @@ def render(
     return out
 
 
+def to_svg(fsa: FSA, *, params: bool = True) -> str:
+    """The FSA as SVG text (what a notebook shows): laid out by Graphviz ``dot`` when it is
+    installed, else drawn with matplotlib."""
+    dot = shutil.which("dot")
+    if dot is not None:
+        proc = subprocess.run([dot, "-Tsvg"], input=to_dot(fsa, params=params), text=True,
+                              capture_output=True, timeout=60)
+        if proc.returncode == 0:
+            return proc.stdout
+    buffer = io.StringIO()
+    draw_matplotlib(fsa, buffer, params=params, fmt="svg")
+    return buffer.getvalue()
+
+
 def layers(fsa: FSA) -> dict[str, tuple[int, int]]:
     """(column, row) of every state and terminal outcome for a left-to-right drawing:
     the column is the breadth-first depth from the start; terminals take the last column;
@@ -166,10 +184,13 @@ def layers(fsa: FSA) -> dict[str, tuple[int, int]]:
     return pos
 
 
-def draw_matplotlib(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
+def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = True,
+                    fmt: str | None = None) -> Any:
     """A picture of the FSA without Graphviz: states in columns by their distance from the
     start (in red), terminal outcomes (boxes) on the right, one arrow per target labelled
-    with its outcomes, self-loops as labels over the state."""
+    with its outcomes, self-loops as labels over the state. ``out``: a file (its suffix
+    gives the format) or a text buffer with ``fmt="svg"``; returns ``out`` (a path as a
+    :class:`~pathlib.Path`)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import FancyArrowPatch
 
@@ -223,6 +244,9 @@ def draw_matplotlib(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
     ax.set_title(f"{fsa.name or 'FSA'}: start in red, terminal outcomes in green; "
                  f"runs over {fsa.step_limit} steps end in timeout", fontsize=9)
     fig.tight_layout()
-    out = Path(out)
-    fig.savefig(out, dpi=110)
-    return out
+    if isinstance(out, io.StringIO):
+        fig.savefig(out, format=fmt or "svg")
+        return out
+    path = Path(out)
+    fig.savefig(path, dpi=110, format=fmt)
+    return path

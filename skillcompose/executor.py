@@ -84,6 +84,12 @@ class RunResult(NamedTuple):
             return ""
         return "".join(traceback.format_exception(self.error))
 
+    def _repr_html_(self) -> str:
+        """In a notebook: how the run ended and its trace as a table."""
+        from .display import run_result_html
+
+        return run_result_html(self)
+
 
 def error_summary(exc: BaseException, frames: int = 3) -> str:
     """``Type: message`` and, below it, the innermost ``frames`` frames of its traceback."""

@@ -256,6 +256,33 @@ class FSA:
         reach = set(self.reachable())
         return [s for s in self.states if s not in reach]
 
+    def _repr_svg_(self) -> str:
+        """In a notebook: the FSA's drawing (see :func:`skillcompose.draw.to_svg`)."""
+        from .draw import to_svg
+
+        return to_svg(self)
+
+    def trap_states(self) -> list[str]:
+        """States reachable from the start from which no terminal outcome can be reached: a
+        run that enters one ends in timeout (breadth-first order). The same as
+        :func:`skillcompose.graph.trap_states`, without networkx, for ``validate``."""
+        predecessors: dict[str, list[str]] = {s: [] for s in self.states}
+        ending = []
+        for name, st in self.states.items():
+            for target in st.transitions.values():
+                if target in self.states:
+                    predecessors[target].append(name)
+                elif target in self.terminals:
+                    ending.append(name)
+        can_end = set(ending)
+        queue = deque(ending)
+        while queue:
+            for p in predecessors[queue.popleft()]:
+                if p not in can_end:
+                    can_end.add(p)
+                    queue.append(p)
+        return [s for s in self.reachable() if s not in can_end]
+
     def pruned(self) -> FSA:
         """This FSA without the states the start cannot reach."""
         reach = set(self.reachable())

@@ -34,24 +34,33 @@ import itertools
 import math
 import multiprocessing
 import os
-import sys
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from .arguments import MAX_TRIALS, MAX_WORKERS, module_or_file, output_file, seed, setting, whole
-from .cli import check_backend
+from .arguments import (
+    MAX_TRIALS,
+    MAX_WORKERS,
+    module_or_file,
+    note,
+    output_file,
+    seed,
+    setting,
+    whole,
+)
 from .errors import SkillcomposeError, clip
-from .executor import compile_fsa
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
-from .fsafile import load_fsa
-from .progress import progress_bar
-from .task import Task, TaskRef, load_task, parse_settings
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .task import Task, TaskRef
+
+# numpy and the runtime (executor, files, tasks) are imported where they are used, so that
+# registering the `robustness` subcommand (which `skillcompose --help` does) stays cheap.
 
 __all__ = [
     "MAX_SWEEP_POINTS",
@@ -125,6 +134,7 @@ def robustness_sweep(
     settings: Mapping[str, Any] | None = None,
     backend: str | None = None,
     step_limit: int | None = None,
+    progress: bool = True,
 ) -> list[SweepRow]:
     """Run ``fsa`` ``reps`` times at each value of the task setting ``setting``.
 
@@ -134,9 +144,16 @@ def robustness_sweep(
     - ``p_fail``: the values of ``setting`` to sweep (the failure probability by default).
     - ``settings``: the task's other settings, kept fixed.
     - ``workers``: processes; the rows are the same for any number.
+    - ``progress``: a progress bar on a terminal (see :func:`~skillcompose.progress.progress_bar`).
 
     Returns one :class:`SweepRow` per value, in the order given.
     """
+    import numpy as np
+
+    from .executor import compile_fsa
+    from .fsafile import load_fsa
+    from .progress import progress_bar
+
     values = [_check_value(v, setting) for v in p_fail]
     if not values:
         raise RobustnessError(f"no values of {setting} to sweep; give at least one")
@@ -158,7 +175,8 @@ def robustness_sweep(
         for start, stop in _chunks(reps, workers, len(values))
     ]
     parts = []
-    with progress_bar(len(values) * reps, "run", f"sweep of {setting}") as bar:
+    with progress_bar(len(values) * reps, "run", f"sweep of {setting}",
+                      disable=not progress) as bar:
         if workers == 1 or len(jobs) == 1:
             for job in jobs:
                 parts.append(_run_chunk(job))
@@ -208,6 +226,10 @@ class _Chunk:
 
 def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
+    import numpy as np
+
+    from .executor import compile_fsa
+
     task = _build(job.ref, job.setting, job.value)
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
         compile_fsa(job.fsa, task.registry, job.backend or task.backend)
@@ -228,6 +250,8 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
     """Split ``reps`` so that the points times their chunks keep ``workers`` busy."""
+    import numpy as np
+
     if workers == 1:
         return [(0, reps)]
     per_point = max(1, min(reps // 500 or 1, math.ceil(4 * workers / points)))
@@ -236,10 +260,14 @@ def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
 
 
 def _build(ref: TaskRef, setting: str, value: float) -> Task:
+    from .task import TaskRef
+
     return TaskRef(ref.module, {**ref.settings, setting: value}).build()
 
 
 def _task_ref(task: str | Task, settings: Mapping[str, Any] | None) -> TaskRef:
+    from .task import Task, TaskRef
+
     if isinstance(task, str):
         return TaskRef(task, dict(settings or {}))
     if isinstance(task, Task):
@@ -256,6 +284,8 @@ def _task_ref(task: str | Task, settings: Mapping[str, Any] | None) -> TaskRef:
 
 
 def _check_value(v: Any, setting: str) -> float:
+    import numpy as np
+
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or \
             not math.isfinite(float(v)):
         raise RobustnessError(f"sweep value {v!r} of {setting} must be a finite number")
@@ -267,6 +297,8 @@ def parse_values(text: str) -> list[float]:
 
     Raises :class:`RobustnessError` with the accepted forms on anything else.
     """
+    import numpy as np
+
     forms = (f"write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. "
              f"0,0.2,0.5) of finite numbers, at most {MAX_SWEEP_POINTS} values")
     text = text.strip()
@@ -440,6 +472,9 @@ def _setting_name(text: str) -> str:
 
 
 def cmd_robustness(args: argparse.Namespace) -> int:
+    from .cli import check_backend
+    from .task import load_task, parse_settings
+
     values = args.values if isinstance(args.values, list) else parse_values(args.values)
     settings = parse_settings(args.settings)
     if args.backend:
@@ -451,7 +486,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     rows = robustness_sweep(
         args.file, args.task, values, reps=args.reps, seed=args.seed, workers=args.workers,
         setting=args.setting, settings=settings, backend=args.backend,
-        step_limit=args.step_limit,
+        step_limit=args.step_limit, progress=not getattr(args, "quiet", False),
     )
     print(format_table(rows))
     csv_path = args.csv
@@ -459,8 +494,8 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         csv_path = str(Path(args.output).with_suffix(".csv"))
     if csv_path:
         write_csv(rows, csv_path)
-        print(f"table: {csv_path}", file=sys.stderr)
+        note(args, f"table: {csv_path}")
     if args.output:
         plot_sweep(rows, args.output, title=f"{Path(args.file).name} on {args.task}")
-        print(f"plot: {args.output}", file=sys.stderr)
+        note(args, f"plot: {args.output}")
     return 0
