@@ -14,6 +14,7 @@ import types
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from .activation import RUNNING, Activation
     from .blackboard import DELETED, Access, Blackboard, diff
     from .errors import (
         BlackboardAccessError,
@@ -32,10 +33,12 @@ if TYPE_CHECKING:
     )
     from .executor import (
         CompiledFSA,
+        FSARun,
         RunResult,
         TraceStep,
         compile_fsa,
         run_fsa,
+        run_ticking,
         summarize,
         trial_rngs,
         trial_seeds,
@@ -55,7 +58,6 @@ if TYPE_CHECKING:
     from .registry import Registry
     from .skill import Skill, SkillSpec, skill
     from .task import Task, TaskError, TaskRef, Trial, load_task, trials
-    from .ticking import RUNNING, Activation, FSARun, run_ticking
 
 # Each public name and the module that defines it: the package imports that module when the
 # name is first used (``from skillcompose import FSA`` imports skillcompose.fsa), so that
@@ -63,7 +65,7 @@ if TYPE_CHECKING:
 # does not load the whole runtime and numpy.
 _HOMES = {
     "Access": ".blackboard",
-    "Activation": ".ticking",
+    "Activation": ".activation",
     "Blackboard": ".blackboard",
     "BlackboardAccessError": ".errors",
     "BlackboardKeyError": ".errors",
@@ -76,7 +78,7 @@ _HOMES = {
     "ERROR": ".fsa",
     "FSA": ".fsa",
     "FSAFileError": ".errors",
-    "FSARun": ".ticking",
+    "FSARun": ".executor",
     "FSASkill": ".nested",
     "FSAValidationError": ".errors",
     "PREEMPTED": ".fsa",
@@ -84,7 +86,7 @@ _HOMES = {
     "ParamError": ".errors",
     "ParamSpec": ".params",
     "Problem": ".errors",
-    "RUNNING": ".ticking",
+    "RUNNING": ".activation",
     "Registry": ".registry",
     "RegistryError": ".errors",
     "RunResult": ".executor",
@@ -110,7 +112,7 @@ _HOMES = {
     "load_task": ".task",
     "loads_fsa": ".fsafile",
     "run_fsa": ".executor",
-    "run_ticking": ".ticking",
+    "run_ticking": ".executor",
     "save_fsa": ".fsafile",
     "skill": ".skill",
     "summarize": ".executor",

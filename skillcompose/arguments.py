@@ -28,7 +28,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip
 
 __all__ = [
     "MAX_SEED",
@@ -66,7 +66,7 @@ class UsageError(SkillcomposeError, ValueError):
 
 
 def _shown(text: str) -> str:
-    return repr(text if len(text) <= 40 else text[:37] + "...")
+    return repr(clip(text))
 
 
 def whole(low: int, high: int) -> Callable[[str], int]:

@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from .blackboard import DELETED
+from .errors import clip
 
 if TYPE_CHECKING:
     from .executor import RunResult
@@ -22,10 +23,7 @@ __all__ = ["html_table", "run_result_html", "short_value"]
 
 def short_value(v: Any, width: int = 60) -> str:
     """``repr(v)`` cut to ``width`` characters; a deleted key as ∅."""
-    if v is DELETED:
-        return "∅"
-    text = repr(v)
-    return text if len(text) <= width else text[: width - 3] + "..."
+    return "∅" if v is DELETED else clip(repr(v), width)
 
 
 def html_table(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:

@@ -34,6 +34,7 @@ import itertools
 import math
 import multiprocessing
 import os
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -50,7 +51,7 @@ from .arguments import (
     setting,
     whole,
 )
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 
 if TYPE_CHECKING:
@@ -156,12 +157,9 @@ def robustness_sweep(
     values = [_check_value(v, setting) for v in p_fail]
     if not values:
         raise RobustnessError(f"no values of {setting} to sweep; give at least one")
-    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
-        raise RobustnessError(f"reps={reps!r} must be a positive whole number, e.g. 5000")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise RobustnessError(f"workers={workers!r} must be a positive whole number")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise RobustnessError(f"seed={seed!r} must be a whole number >= 0")
+    for what, count, low in (("reps", reps, 1), ("workers", workers, 1), ("seed", seed, 0)):
+        if isinstance(count, bool) or not isinstance(count, int) or count < low:
+            raise RobustnessError(f"{what}={count!r} must be a whole number >= {low}")
     ref = _task_ref(task, settings)
     machine = fsa if isinstance(fsa, FSA) else load_fsa(fsa)
     if step_limit is not None:
@@ -197,10 +195,7 @@ def robustness_sweep(
         mine = parts[k * per_value:(k + 1) * per_value]
         fit = np.concatenate([p[0] for p in mine])
         steps = np.concatenate([p[1] for p in mine])
-        counts: dict[str, int] = {}
-        for p in mine:
-            for o, n in p[2].items():
-                counts[o] = counts.get(o, 0) + n
+        counts = sum((p[2] for p in mine), Counter[str]())
         rows.append(SweepRow(
             setting=setting,
             value=v,
@@ -229,7 +224,7 @@ class _Chunk:
     task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
 
 
-def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int]:
+def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
     import numpy as np
 
@@ -241,7 +236,7 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
     n = job.stop - job.start
     fit = np.empty(n)
     steps = np.empty(n, dtype=np.int64)
-    counts: dict[str, int] = {}
+    counts = Counter[str]()
     solved = 0
     is_solved = task.solved
     for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n,
@@ -249,7 +244,7 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
         fit[k] = f
         solved += is_solved(f)
         steps[k] = result.steps
-        counts[result.outcome] = counts.get(result.outcome, 0) + 1
+        counts[result.outcome] += 1
     return fit, steps, counts, solved
 
 
@@ -307,7 +302,7 @@ def parse_values(text: str) -> list[float]:
     forms = (f"write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. "
              f"0,0.2,0.5) of finite numbers, at most {MAX_SWEEP_POINTS} values")
     text = text.strip()
-    shown = text if len(text) <= 40 else text[:37] + "..."
+    shown = clip(text)
     try:
         if ":" in text:
             parts = text.split(":")

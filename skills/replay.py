@@ -26,10 +26,9 @@ from matplotlib.figure import Figure
 from robots.collision import Box, Scene
 from robots.model import TUCKED_ARM_RAD, RobotPose, load_pr2
 from robots.render import render_configuration, scene_camera
-from skillcompose import Blackboard, load_fsa, load_task
+from skillcompose import RUNNING, Blackboard, load_fsa, load_task
 from skillcompose.executor import compile_fsa, trial_rngs
 from skillcompose.task import parse_settings
-from skillcompose.ticking import RUNNING
 from skills.kinematic_world import DEFAULT_OBJECT_HALF_EXTENTS_M, scene_world
 
 __all__ = ["Replay", "main", "replay", "robot_pose", "world_scene"]
