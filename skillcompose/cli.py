@@ -39,7 +39,7 @@ from .arguments import (
     setting,
     whole,
 )
-from .errors import FSAValidationError, Problem, SkillcomposeError
+from .errors import FSAValidationError, SkillcomposeError
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -250,11 +250,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SkillcomposeError(
             f"{args.file}: no skills loaded; give --skills MODULE or --task TASK"
         )
-    try:  # with a task, the task's step limit (as in evolution); else the file's
-        compiled = task.compile(fsa, args.backend) if task is not None else \
-            compile_fsa(fsa, registry, args.backend)
-    except SkillcomposeError as exc:
-        raise SkillcomposeError(str(exc)) from None
+    # with a task, the task's step limit (as in evolution); else the file's
+    compiled = task.compile(fsa, args.backend) if task is not None else \
+        compile_fsa(fsa, registry, args.backend)
     step_limit = task.step_limit if task is not None else fsa.step_limit
     if task is not None and fsa.step_limit != task.step_limit:
         note(args, f"{args.file}: step limit {task.step_limit} from task {task.name} (the "
@@ -272,8 +270,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         bar.update(1)
         result = trial.result
         results.append(result)
-        if task is not None:
-            fitness.append(trial.fitness)
+        fitness.append(trial.fitness)  # nan without a task
         if result.trace is not None:
             _print_trace(result, trace_out)
         if result.error is not None and args.trace and trial.number == 0:
@@ -281,15 +278,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             traceback.print_exception(result.error, file=sys.stderr)
     bar.close()
     s = summarize(results)
-    errors = [(k, r) for k, r in enumerate(results) if r.error is not None]
-    if getattr(args, "json", False):
-        first: dict[str, Any] | None = None
+    errors = [(k, r.last_state, r.error) for k, r in enumerate(results) if r.error is not None]
+    arr = np.asarray(fitness)
+    if as_json:
+        first = None
         if errors:
-            k, r = errors[0]
-            assert r.error is not None
-            first = {"run": k, "state": r.last_state,
-                     "error": f"{type(r.error).__name__}: {r.error}"}
-        arr = np.asarray(fitness)
+            k, state, exc = errors[0]
+            first = {"run": k, "state": state, "error": f"{type(exc).__name__}: {exc}"}
         print_json({
             "command": "run", "file": args.file, "seed": args.seed, "trials": s["trials"],
             "backend": compiled.backend, "task": task.name if task is not None else None,
@@ -308,15 +303,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"  {outcome:<{width}}  {count:>7}  {100.0 * count / s['trials']:6.2f}%")
         print(f"  mean steps {s['mean_steps']:.2f}")
         if task is not None:
-            arr = np.asarray(fitness)
             print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
                   f"({'lower' if task.minimize else 'higher'} is better)")
     if errors and not args.trace:
-        k, first_result = errors[0]
-        assert first_result.error is not None
+        k, state, exc = errors[0]
         print(
             f"  {len(errors)} run(s) ended in error; the first (run {k}) in state "
-            f"{first_result.last_state}: {error_summary(first_result.error)}\n"
+            f"{state}: {error_summary(exc)}\n"
             "  rerun with --trace for the whole traceback",
             file=sys.stderr,
         )
@@ -327,10 +320,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_trace(result: Any, out: Any = None) -> None:
+def _print_trace(result: Any, out: Any) -> None:
     from .display import short_value as _short
 
-    out = out if out is not None else sys.stdout
     for ev in result.trace:
         print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}",
               file=out)
@@ -339,16 +331,12 @@ def _print_trace(result: Any, out: Any = None) -> None:
     print(f"ended: {result.outcome} after {result.steps} step(s)", file=out)
 
 
-def _problem_document(problem: Problem) -> dict[str, Any]:
-    return {"line": problem.line, "column": problem.column, "state": problem.state,
-            "key": problem.key, "message": problem.message, "fix": problem.fix}
-
-
 def _invalid_document(file: str, exc: FSAValidationError) -> dict[str, Any]:
     """``validate --json`` of a file that is not valid: its problems, with their lines."""
     return {"command": "validate", "file": file, "valid": False, "states": None,
             "start": None, "skills_checked": None, "unreachable": [], "traps": [],
-            "problems": [_problem_document(p) for p in exc.problems]}
+            "problems": [{"line": p.line, "column": p.column, "state": p.state, "key": p.key,
+                          "message": p.message, "fix": p.fix} for p in exc.problems]}
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -400,24 +388,22 @@ def cmd_skills(args: argparse.Namespace) -> int:
     registry, _ = _load(args)
     if not len(registry):
         raise SkillcomposeError("no skills loaded; give --skills MODULE or --task TASK")
+    docs = [_skill_document(registry, name) for name in sorted(registry.names())]
     if getattr(args, "json", False):
-        print_json({"command": "skills", "skills": [
-            _skill_document(registry, name) for name in sorted(registry.names())]})
+        print_json({"command": "skills", "skills": docs})
         return 0
-    for name in sorted(registry.names()):
-        spec = registry.spec(name)
-        backends = ", ".join(registry.backends(name))
-        print(f"{name}  [{backends}]")
-        print(f"  outcomes: {', '.join(spec.outcomes)}")
-        for p in spec.params:
-            print(f"  param {p.name}: {p.describe_range()} (default {p.default!r}"
-                  f"{', log scale' if p.scale == 'log' else ''})")
-        if spec.reads:
-            print(f"  reads:  {', '.join(sorted(spec.reads))}")
-        if spec.writes:
-            print(f"  writes: {', '.join(sorted(spec.writes))}")
-        if spec.doc:
-            print("  " + spec.doc.splitlines()[0])
+    for d in docs:
+        print(f"{d['name']}  [{', '.join(d['backends'])}]")
+        print(f"  outcomes: {', '.join(d['outcomes'])}")
+        for p in d["params"]:
+            print(f"  param {p['name']}: {p['range']} (default {p['default']!r}"
+                  f"{', log scale' if p['scale'] == 'log' else ''})")
+        if d["reads"]:
+            print(f"  reads:  {', '.join(d['reads'])}")
+        if d["writes"]:
+            print(f"  writes: {', '.join(d['writes'])}")
+        if d["doc"]:
+            print("  " + d["doc"])
     return 0
 
 
