@@ -32,11 +32,11 @@ import argparse
 import csv
 import itertools
 import math
-import multiprocessing
 import os
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -119,9 +119,7 @@ class SweepRow:
         return self.rate(TIMEOUT)
 
 
-# ---------------------------------------------------------------------------------------
-# the sweep
-# ---------------------------------------------------------------------------------------
+# -- the sweep ------------------------------------------------------------------------------------
 def robustness_sweep(
     fsa: FSA | str | os.PathLike[str],
     task: str | Task,
@@ -175,19 +173,14 @@ def robustness_sweep(
         for start, stop in _chunks(reps, workers, len(values))
     ]
     parts = []
-    with progress_bar(len(values) * reps, "run", f"sweep of {setting}",
-                      disable=not progress) as bar:
-        if workers == 1 or len(jobs) == 1:
-            for job in jobs:
-                parts.append(_run_chunk(job))
-                bar.update(job.stop - job.start)
-        else:
-            ctx = multiprocessing.get_context()  # the platform default start method
-            with ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
-                                     mp_context=ctx) as pool:
-                for job, part in zip(jobs, pool.map(_run_chunk, jobs), strict=True):
-                    parts.append(part)
-                    bar.update(job.stop - job.start)
+    with ExitStack() as stack:
+        bar = stack.enter_context(progress_bar(len(values) * reps, "run", f"sweep of {setting}",
+                                               disable=not progress))
+        run = map if workers == 1 or len(jobs) == 1 else \
+            stack.enter_context(ProcessPoolExecutor(min(workers, len(jobs)))).map
+        for job, part in zip(jobs, run(_run_chunk, jobs), strict=True):
+            parts.append(part)
+            bar.update(job.stop - job.start)
 
     rows = []
     per_value = len(jobs) // len(values)
@@ -328,16 +321,13 @@ def parse_values(text: str) -> list[float]:
     return values
 
 
-# ---------------------------------------------------------------------------------------
-# output
-# ---------------------------------------------------------------------------------------
+# -- output ---------------------------------------------------------------------------------------
 _FIRST_OUTCOMES = ("success", "failure", TIMEOUT, ERROR)
 
 
 def _outcome_columns(rows: Sequence[SweepRow]) -> list[str]:
-    seen = {o for r in rows for o in r.outcomes}
-    rest = sorted(seen - set(_FIRST_OUTCOMES))
-    return [*_FIRST_OUTCOMES, *rest]
+    rest = {o for r in rows for o in r.outcomes} - set(_FIRST_OUTCOMES)
+    return [*_FIRST_OUTCOMES, *sorted(rest)]
 
 
 def table(rows: Sequence[SweepRow]) -> tuple[list[str], list[list[str]]]:
@@ -376,10 +366,8 @@ def format_table(rows: Sequence[SweepRow]) -> str:
     keep = [0, 1, 2, 3, 6, *range(7, len(header))]  # leave min and max to the CSV
     cols = [[header[i], *[b[i] for b in body]] for i in keep]
     widths = [max(len(c) for c in col) for col in cols]
-    lines = []
-    for k in range(len(body) + 1):
-        lines.append("  ".join(col[k].rjust(w) for col, w in zip(cols, widths, strict=True)))
-    return "\n".join(lines)
+    return "\n".join("  ".join(col[k].rjust(w) for col, w in zip(cols, widths, strict=True))
+                     for k in range(len(body) + 1))
 
 
 def plot_sweep(
@@ -420,9 +408,7 @@ def plot_sweep(
     return p
 
 
-# ---------------------------------------------------------------------------------------
-# command line
-# ---------------------------------------------------------------------------------------
+# -- command line ---------------------------------------------------------------------------------
 def register_cli(subparsers: Any) -> None:
     """Add ``skillcompose robustness`` to the command line."""
     p = subparsers.add_parser(
@@ -459,10 +445,9 @@ def register_cli(subparsers: Any) -> None:
 
 def _sweep_arg(text: str) -> list[float]:
     try:
-        values = parse_values(text)
+        return parse_values(text)
     except RobustnessError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-    return values
 
 
 def _setting_name(text: str) -> str:
