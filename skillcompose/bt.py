@@ -51,9 +51,7 @@ class BridgeError(SkillcomposeError, ValueError):
     """A behaviour-tree bridge is configured wrongly (namespace, key map, status map)."""
 
 
-# ---------------------------------------------------------------------------------------
-# blackboard bridge
-# ---------------------------------------------------------------------------------------
+# -- blackboard bridge ----------------------------------------------------------------------------
 class BlackboardBridge:
     """Copies declared keys between a skillcompose :class:`Blackboard` and py_trees'.
 
@@ -143,9 +141,7 @@ def _namespace(ns: str, owner: str) -> str:
     return ns
 
 
-# ---------------------------------------------------------------------------------------
-# FSA and skill as behaviours
-# ---------------------------------------------------------------------------------------
+# -- FSA and skill as behaviours ------------------------------------------------------------------
 _STATUS = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE}
 
 
@@ -358,9 +354,7 @@ class SkillBehaviour(FSABehaviour):
         )
 
 
-# ---------------------------------------------------------------------------------------
-# tree as a skill
-# ---------------------------------------------------------------------------------------
+# -- tree as a skill ------------------------------------------------------------------------------
 TreeSource = py_trees.behaviour.Behaviour | Callable[[], py_trees.behaviour.Behaviour]
 
 
@@ -404,6 +398,9 @@ class TreeSkill(Skill):
         return _TreeActivation(self, root, bb)
 
 
+_OUTCOMES = {Status.RUNNING: RUNNING, Status.SUCCESS: "success", Status.FAILURE: "failure"}
+
+
 class _TreeActivation:
     __slots__ = ("bb", "root", "skill")
 
@@ -420,12 +417,8 @@ class _TreeActivation:
         self.root.tick_once()
         bridge.pull(self.bb)
         st = self.root.status
-        if st == Status.RUNNING:
-            return RUNNING
-        if st == Status.SUCCESS:
-            return "success"
-        if st == Status.FAILURE:
-            return "failure"
+        if st in _OUTCOMES:
+            return _OUTCOMES[st]
         raise SkillProtocolError(
             f"skill {self.skill.name}: tree {self.root.name} ended with status {st}; a tree "
             "skill must end with SUCCESS or FAILURE"

@@ -12,7 +12,7 @@ from __future__ import annotations
 import io
 import shutil
 import subprocess
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -197,12 +197,9 @@ def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = T
     grid = layers(fsa)
     ncols = max(c for c, _ in grid.values()) + 1
     height = max((r for _, r in grid.values()), default=0) + 1
-    xy: dict[str, tuple[float, float]] = {}
-    col_size: dict[int, int] = defaultdict(int)
-    for c, _ in grid.values():
-        col_size[c] += 1
-    for name, (c, r) in grid.items():
-        xy[name] = (3.2 * c, (col_size[c] - 1) / 2.0 - r)  # columns centred vertically
+    col_size = Counter(c for c, _ in grid.values())
+    xy = {name: (3.2 * c, (col_size[c] - 1) / 2.0 - r)  # columns centred vertically
+          for name, (c, r) in grid.items()}
     fig = Figure(figsize=(max(6.0, 2.4 * ncols), max(3.5, 1.3 * height + 1.5)))
     ax = fig.add_subplot()
     boxes = {}

@@ -641,8 +641,7 @@ def trial_seeds(
 def trial_rngs(
     seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int, start: int = 0
 ) -> Iterator[np.random.Generator]:
-    for s in trial_seeds(seed, trials, start):
-        yield np.random.default_rng(s)
+    return (np.random.default_rng(s) for s in trial_seeds(seed, trials, start))
 
 
 def summarize(results: Sequence[RunResult]) -> dict[str, Any]:

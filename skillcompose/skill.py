@@ -134,7 +134,6 @@ class Skill:
         twin.backend = backend
         return twin
 
-
     def starter(self, backend: str | None = None) -> Starter | None:
         """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
         return None
@@ -276,9 +275,7 @@ def skill(
     def wrap(obj: Callable[..., Any]) -> Skill:
         return _make_skill(obj, name, outcomes, reads, writes, backend)
 
-    if fn is not None:
-        return wrap(fn)
-    return wrap
+    return wrap(fn) if fn is not None else wrap
 
 
 _CAMEL = re.compile(r"(?:^|_)([a-z0-9])")
@@ -331,8 +328,6 @@ def _make_skill(
             )
         func = obj.start
         outcome_source = tick
-        skip = 1  # self
-        default_name = obj.__name__
     elif is_class:
         call = getattr(obj, "__call__", None)  # noqa: B004 - we want the class attribute
         if call is None or call is object.__call__:
@@ -342,15 +337,13 @@ def _make_skill(
                 "start / tick / cancel for a long-running skill"
             )
         func = call
-        skip = 1  # self
-        default_name = obj.__name__
     elif callable(obj):
         func = obj
-        skip = 0
-        default_name = camel_name(getattr(obj, "__name__", "skill"))
     else:
         raise SkillDefinitionError(f"@skill needs a function or a class, got {obj!r}")
-    skill_name = name or default_name
+    skip = 1 if is_class else 0  # self
+    skill_name = name or (obj.__name__ if is_class else
+                          camel_name(getattr(obj, "__name__", "skill")))
     if not isinstance(skill_name, str) or not skill_name.isidentifier():
         raise SkillDefinitionError(
             f"skill name {skill_name!r} must be an identifier (letters, digits, _)"
