@@ -256,20 +256,14 @@ def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> di
     return out
 
 
-class _Raised:
+class _Raised(NamedTuple):
     """What a running activation's tick raised, handed from the hot path to the loop."""
 
-    __slots__ = ("exc",)
-
-    def __init__(self, exc: Exception) -> None:
-        self.exc = exc
+    exc: Exception
 
 
-class _Expired:
-    """What a state's activation gives when its time limit ran out."""
-
-
-_EXPIRED: Any = _Expired()
+_EXPIRED: Any = object()
+"""What a state's activation gives when its time limit ran out."""
 
 
 class FSARun:

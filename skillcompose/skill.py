@@ -156,8 +156,7 @@ class Skill:
     ) -> str:
         """Run the skill once, outside an FSA, with its parameters checked."""
         kwargs = self.spec.resolve_params(params)
-        if not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
+        rng = np.random.default_rng(rng)  # a Generator is returned as it is
         prev = bb._client
         bb._client = self.spec.access()
         try:
