@@ -8,8 +8,8 @@ Conventions every subcommand follows (those added by other packages too): ``-q``
 are accepted before and after the subcommand with one meaning (see
 :func:`skillcompose.arguments.add_output_options`; :func:`build_parser` adds them to every
 subcommand); a command with a result document takes ``--json`` and then prints one JSON
-document on standard output and nothing else there. A module named in
-:data:`SUBCOMMAND_MODULES` must import quickly: heavy packages (Pinocchio, CasADi,
+document on standard output and nothing else there. This module and each one named
+in :data:`SUBCOMMAND_MODULES` must import quickly: heavy packages (Pinocchio, CasADi,
 matplotlib, Ray) are imported by the command that needs them, not by ``register_cli``, so
 that ``skillcompose --help`` and ``skillcompose validate`` answer at once.
 """
@@ -44,9 +44,6 @@ from .errors import FSAValidationError, SkillcomposeError
 if TYPE_CHECKING:
     from .registry import Registry
     from .task import Task
-
-# The runtime (numpy, the executor, the file reader, tasks) is imported by the command that
-# runs, so that `skillcompose --help` answers at once.
 
 __all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
 

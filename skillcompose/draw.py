@@ -115,11 +115,9 @@ def render(
     out = Path(out)
     fmt = out.suffix.lower().lstrip(".")
     out.parent.mkdir(parents=True, exist_ok=True)
-    if fmt in ("dot", "gv"):
-        out.write_text(to_dot(fsa, params=params), encoding="utf-8")
-        return out
-    if fmt in ("mmd", "mermaid"):
-        out.write_text(to_mermaid(fsa), encoding="utf-8")
+    if fmt in ("dot", "gv", "mmd", "mermaid"):
+        text = to_dot(fsa, params=params) if fmt in ("dot", "gv") else to_mermaid(fsa)
+        out.write_text(text, encoding="utf-8")
         return out
     if fmt not in ("svg", "png", "pdf"):
         raise DrawingError(
@@ -233,8 +231,7 @@ def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = T
                     va="center", fontsize=7, color="dimgray", zorder=2,
                     bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
                           "alpha": 0.8})
-    xs = [p[0] for p in xy.values()]
-    ys = [p[1] for p in xy.values()]
+    xs, ys = zip(*xy.values(), strict=True)
     ax.set_xlim(min(xs) - 1.6, max(xs) + 1.6)
     ax.set_ylim(min(ys) - 1.0, max(ys) + 1.0)
     ax.axis("off")
