@@ -183,9 +183,7 @@ def existing_dir(text: str) -> str:
     return text
 
 
-# ---------------------------------------------------------------------------------------
-# options every subcommand shares
-# ---------------------------------------------------------------------------------------
+# -- options every subcommand shares -------------------------------------------------------
 def add_output_options(p: argparse.ArgumentParser, *, top: bool = False) -> None:
     """``-q/--quiet`` and ``-v/--verbose``: accepted before and after the subcommand, with
     one meaning everywhere. ``-q``: standard output keeps the result, standard error only

@@ -51,7 +51,7 @@ class BridgeError(SkillcomposeError, ValueError):
     """A behaviour-tree bridge is configured wrongly (namespace, key map, status map)."""
 
 
-# -- blackboard bridge ----------------------------------------------------------------------------
+# -- blackboard bridge ---------------------------------------------------------------------
 class BlackboardBridge:
     """Copies declared keys between a skillcompose :class:`Blackboard` and py_trees'.
 
@@ -141,7 +141,7 @@ def _namespace(ns: str, owner: str) -> str:
     return ns
 
 
-# -- FSA and skill as behaviours ------------------------------------------------------------------
+# -- FSA and skill as behaviours -----------------------------------------------------------
 _STATUS = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE}
 
 
@@ -354,7 +354,7 @@ class SkillBehaviour(FSABehaviour):
         )
 
 
-# -- tree as a skill ------------------------------------------------------------------------------
+# -- tree as a skill -----------------------------------------------------------------------
 TreeSource = py_trees.behaviour.Behaviour | Callable[[], py_trees.behaviour.Behaviour]
 
 

@@ -117,7 +117,7 @@ class SweepRow:
         return self.rate(TIMEOUT)
 
 
-# -- the sweep ------------------------------------------------------------------------------------
+# -- the sweep -----------------------------------------------------------------------------
 def robustness_sweep(
     fsa: FSA | str | os.PathLike[str],
     task: str | Task,
@@ -309,20 +309,16 @@ def parse_values(text: str) -> list[float]:
     return values
 
 
-# -- output ---------------------------------------------------------------------------------------
+# -- output --------------------------------------------------------------------------------
 _FIRST_OUTCOMES = ("success", "failure", TIMEOUT, ERROR)
-
-
-def _outcome_columns(rows: Sequence[SweepRow]) -> list[str]:
-    rest = {o for r in rows for o in r.outcomes} - set(_FIRST_OUTCOMES)
-    return [*_FIRST_OUTCOMES, *sorted(rest)]
 
 
 def table(rows: Sequence[SweepRow]) -> tuple[list[str], list[list[str]]]:
     """Header and formatted cells of the CSV table."""
     if not rows:
         raise RobustnessError("no rows to write")
-    outs = _outcome_columns(rows)
+    rest = {o for r in rows for o in r.outcomes} - set(_FIRST_OUTCOMES)
+    outs = [*_FIRST_OUTCOMES, *sorted(rest)]
     header = [rows[0].setting, "reps", "mean", "std", "min", "max", "mean_steps", "solved_rate"]
     header += [f"{o}_rate" for o in outs]
     body = []
@@ -396,7 +392,7 @@ def plot_sweep(
     return p
 
 
-# -- command line ---------------------------------------------------------------------------------
+# -- command line --------------------------------------------------------------------------
 def register_cli(subparsers: Any) -> None:
     """Add ``skillcompose robustness`` to the command line."""
     p = subparsers.add_parser(
