@@ -23,6 +23,7 @@ override these, so the engine never asks what kind a skill is.
 from __future__ import annotations
 
 import collections.abc
+import contextlib
 import copy
 import functools
 import inspect
@@ -452,10 +453,9 @@ def _annotations(func: Any) -> dict[str, Any]:
     if not raw:
         return {}
     globalns = getattr(func, "__globals__", {})
-    try:
+    # fails e.g. on `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
+    with contextlib.suppress(Exception):
         return typing.get_type_hints(func, include_extras=True)
-    except Exception:  # e.g. `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
-        pass
     try:  # only parameters after `*` and the return type matter to a skill
         sig = inspect.signature(func)
         needed = {n for n, p in sig.parameters.items() if p.kind is p.KEYWORD_ONLY}
