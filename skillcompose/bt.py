@@ -210,13 +210,11 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
         self.fsa_run: FSARun | None = None
         self.last_result: RunResult | None = None
         self.activations = 0
-        self._views: dict[str, _StateView] = {}
-        if show_states:
-            for sname in compiled.names:
-                view = _StateView(sname, compiled.fsa.states[sname])
-                view.parent = self
-                self.children.append(view)
-                self._views[sname] = view
+        states = compiled.fsa.states
+        self._views = {s: _StateView(s, states[s]) for s in compiled.names} if show_states else {}
+        for view in self._views.values():
+            view.parent = self
+            self.children.append(view)
 
     def initialise(self) -> None:
         rng = np.random.default_rng(self._seeds.spawn(1)[0])
@@ -257,15 +255,14 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
 
     def _show(self, running: str | None, last: str | None = None) -> None:
         for sname, view in self._views.items():
+            view.feedback_message = ""
             if sname == running:
                 view.status = Status.RUNNING
             elif sname == last and self.last_result is not None:
                 view.status = self.status_map.get(self.last_result.outcome, Status.FAILURE)
                 view.feedback_message = f"ended: {self.last_result.outcome}"
-                continue
             else:
                 view.status = Status.INVALID
-            view.feedback_message = ""
 
 
 class _StateView(py_trees.behaviour.Behaviour):
