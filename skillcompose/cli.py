@@ -250,7 +250,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     # with a task, the task's step limit (as in evolution); else the file's
     compiled = task.compile(fsa, args.backend) if task is not None else \
         compile_fsa(fsa, registry, args.backend)
-    step_limit = task.step_limit if task is not None else fsa.step_limit
     if task is not None and fsa.step_limit != task.step_limit:
         note(args, f"{args.file}: step limit {task.step_limit} from task {task.name} (the "
              f"file's {fsa.step_limit} applies when it runs without --task)")
@@ -285,7 +284,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print_json({
             "command": "run", "file": args.file, "seed": args.seed, "trials": s["trials"],
             "backend": compiled.backend, "task": task.name if task is not None else None,
-            "step_limit": step_limit, "outcomes": s["outcomes"],
+            "step_limit": compiled.step_limit, "outcomes": s["outcomes"],
             "mean_steps": s["mean_steps"],
             "fitness": None if task is None else {
                 "mean": float(arr.mean()), "std": float(arr.std()),

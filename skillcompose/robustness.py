@@ -188,16 +188,10 @@ def robustness_sweep(
         steps = np.concatenate([p[1] for p in mine])
         counts = sum((p[2] for p in mine), Counter[str]())
         rows.append(SweepRow(
-            setting=setting,
-            value=v,
-            reps=reps,
-            mean=float(np.mean(fit)),
-            std=float(np.std(fit, ddof=1)) if reps > 1 else 0.0,
-            min=float(np.min(fit)),
-            max=float(np.max(fit)),
-            mean_steps=float(np.mean(steps)),
-            solved=sum(p[3] for p in mine),
-            outcomes=dict(sorted(counts.items())),
+            setting=setting, value=v, reps=reps, mean=float(np.mean(fit)),
+            std=float(np.std(fit, ddof=1)) if reps > 1 else 0.0, min=float(np.min(fit)),
+            max=float(np.max(fit)), mean_steps=float(np.mean(steps)),
+            solved=sum(p[3] for p in mine), outcomes=dict(sorted(counts.items())),
         ))
     return rows
 
