@@ -165,12 +165,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         note(args, f"{prog}: exit status {status} after {time.perf_counter() - started:.2f} s",
              level=1)
         return status
-    except FSAValidationError as exc:
-        if getattr(args, "json", False) and args.command == "validate":
-            print_json(_invalid_document(args.file, exc))
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return 2
     except SkillcomposeError as exc:
+        if isinstance(exc, FSAValidationError) and args.command == "validate" and args.json:
+            print_json(_invalid_document(args.file, exc))
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

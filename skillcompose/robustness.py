@@ -438,7 +438,6 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     from .cli import check_backend
     from .task import load_task, parse_settings
 
-    values = args.values if isinstance(args.values, list) else parse_values(args.values)
     settings = parse_settings(args.settings)
     if args.backend:
         check_backend(load_task(args.task, **settings).registry, args.backend)
@@ -447,14 +446,12 @@ def cmd_robustness(args: argparse.Namespace) -> int:
             f"--set {args.setting}=... conflicts with the sweep of {args.setting}; drop it"
         )
     rows = robustness_sweep(
-        args.file, args.task, values, reps=args.reps, seed=args.seed, workers=args.workers,
+        args.file, args.task, args.values, reps=args.reps, seed=args.seed, workers=args.workers,
         setting=args.setting, settings=settings, backend=args.backend,
         step_limit=args.step_limit, progress=not getattr(args, "quiet", False),
     )
     print(format_table(rows))
-    csv_path = args.csv
-    if csv_path is None and args.output:
-        csv_path = str(Path(args.output).with_suffix(".csv"))
+    csv_path = args.csv or (str(Path(args.output).with_suffix(".csv")) if args.output else None)
     if csv_path:
         write_csv(rows, csv_path)
         note(args, f"table: {csv_path}")
