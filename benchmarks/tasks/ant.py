@@ -1,4 +1,4 @@
-"""The artificial ant on the John Muir trail: Jefferson et al.'s FSA benchmark.
+"""The artificial ant: Jefferson et al.'s John Muir trail and Koza's Santa Fe trail.
 
 Jefferson, Collins, Cooper, Dyer, Flowers, Korf, Taylor and Wang, "Evolution as a theme in
 artificial life: the Genesys/Tracker system", Artificial Life II (1991): an ant on a 32 x 32
@@ -7,7 +7,8 @@ toroidal grid must eat the 89 food pellets of a broken trail (the "John Muir tra
 one cell forward, or turns left or right, in place. Tracker evolved finite state automata
 whose transitions read that sensor. The trail below is the public copy of the John Muir
 world (32 x 32, 89 pellets, the ant at the top left corner facing east, the trail wrapping
-round the grid's edges).
+round the grid's edges). ``trail="santa_fe"`` gives Koza's Santa Fe trail instead, the
+best-known benchmark of genetic programming, with 600 time steps.
 
 Here each action is a skill whose outcome is the sensor after the action (``food`` or
 ``empty`` ahead), so the FSA's transitions on those outcomes are the classic controller: a
@@ -15,8 +16,9 @@ state is an action, an edge the next action given what the ant sees. The run nev
 itself; it stops at 200 steps (the task's step limit), and the fitness is the number of
 pellets eaten (maximised; 89 solves it). Nothing is random: the task is deterministic.
 
-A hand-written solution of 5 states follows the trail's gaps by a look-left, look-right
-search; it is in :data:`REFERENCE` and checked by a test.
+A hand-written FSA of 5 states that looks left and right at each gap eats 81 pellets
+(:data:`REFERENCE`); eating all 89 in 200 steps needs a controller that crosses the gaps
+efficiently, which makes the trail hard.
 
 Usage: ``skillcompose evolve benchmarks.tasks.ant``.
 """
@@ -68,8 +70,47 @@ MUIR_TRAIL = (
 """The John Muir trail, row 0 at the top; ``#`` is a food pellet. The ant starts at row 0,
 column 0, facing east (towards growing columns)."""
 
-TRAILS = {"john_muir": MUIR_TRAIL}
-STEPS = 200  # Jefferson et al.'s time limit on this trail
+SANTA_FE_TRAIL = (
+    ".###............................",
+    "...#............................",
+    "...#.....................###....",
+    "...#....................#....#..",
+    "...#....................#....#..",
+    "...####.#####........##.........",
+    "............#................#..",
+    "............#.......#...........",
+    "............#.......#...........",
+    "............#.......#........#..",
+    "....................#...........",
+    "............#...................",
+    "............#................#..",
+    "............#.......#...........",
+    "............#.......#.....###...",
+    ".................#.....#........",
+    "................................",
+    "............#...................",
+    "............#...#.......#.......",
+    "............#...#..........#....",
+    "............#...#...............",
+    "............#...#...............",
+    "............#.............#.....",
+    "............#..........#........",
+    "...##..#####....#...............",
+    ".#..............#...............",
+    ".#..............#...............",
+    ".#......#######.................",
+    ".#.....#........................",
+    ".......#........................",
+    "..####..........................",
+    "................................",
+)
+"""Koza's Santa Fe trail (Genetic Programming, 1992, chapter 7), drawn the same way: 89
+pellets, the ant at the top left corner facing east."""
+
+TRAILS = {"john_muir": MUIR_TRAIL, "santa_fe": SANTA_FE_TRAIL}
+STEPS = {"john_muir": 200, "santa_fe": 600}
+"""Time steps per trail: Jefferson et al.'s 200 on the John Muir trail; 600 on the Santa Fe
+trail, the limit of the usual GP benchmark code (DEAP's example among them)."""
 _HEADINGS = ((0, 1), (1, 0), (0, -1), (-1, 0))  # east, south, west, north (row, column)
 
 
@@ -145,18 +186,21 @@ def _reference() -> FSA:
             "Right2": State("TurnRight", transitions={"food": "Move", "empty": "Back"}),
             "Back": State("TurnLeft", transitions={"food": "Move", "empty": "Move"}),
         },
-        step_limit=STEPS,
+        step_limit=STEPS["john_muir"],
     )
 
 
 REFERENCE = _reference()
-"""A 5-state hand-written ant: eats 89 of 89 pellets on the John Muir trail in 200 steps."""
+"""A 5-state hand-written ant (move while food is ahead, else look left and right): eats
+81 of the 89 pellets of the John Muir trail in 200 steps."""
 
 
-def make_task(trail: str = "john_muir", steps: int = STEPS) -> Task:
-    """The ant task on ``trail`` (one of :data:`TRAILS`) with ``steps`` time steps."""
+def make_task(trail: str = "john_muir", steps: int | None = None) -> Task:
+    """The ant task on ``trail`` (one of :data:`TRAILS`) with ``steps`` time steps (default:
+    the trail's, :data:`STEPS`)."""
     if trail not in TRAILS:
         raise ValueError(f"trail={trail!r}: choose one of {', '.join(sorted(TRAILS))}")
+    steps = STEPS[trail] if steps is None else steps
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ValueError(f"steps={steps!r}: expected a whole number of time steps >= 1")
     lines = TRAILS[trail]
