@@ -65,19 +65,24 @@ class Bench:
 CONFIGS: dict[str, dict[str, Any]] = {
     "paper": PRESETS["paper"],
     "robust": PRESETS["robust"],
+    "robust + cache": {**PRESETS["robust"], "cache": True},
+    "robust + cache + unique": {**PRESETS["robust"], "cache": True, "unique_children": True},
     "islands": PRESETS["islands"],
     "islands + cache": {**PRESETS["islands"], "cache": True},
+    "islands + cache + restarts": {**PRESETS["islands"], "cache": True, "restart_after": 20},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
 }
 """The settings compared: the head's presets, and the island preset (with the cache on the
-deterministic tasks, where a genome's fitness never changes)."""
+deterministic tasks, where a genome's fitness never changes); between them, what each
+mechanism adds on its own."""
 
-DETERMINISTIC = ("paper", "robust", "islands + cache")
+DETERMINISTIC = ("paper", "robust", "robust + cache", "robust + cache + unique",
+                 "islands + cache")
 
 BENCHES = (
     Bench(
-        "ant, Santa Fe trail", "benchmarks.tasks.ant", {"trail": "santa_fe"}, 100,
+        "ant, Santa Fe trail", "benchmarks.tasks.ant", {"trail": "santa_fe"}, 60,
         (20_000, 60_000), DETERMINISTIC,
         "Koza's Santa Fe trail: 32 x 32 torus, 89 pellets, 600 time steps; solved when all "
         "89 are eaten.",
@@ -89,8 +94,8 @@ BENCHES = (
           "2007)", "20,696", "the paper's title; its setting (time steps) not read here")),
     ),
     Bench(
-        "ant, John Muir trail", "benchmarks.tasks.ant", {"trail": "john_muir"}, 100,
-        (20_000, 60_000), DETERMINISTIC,
+        "ant, John Muir trail", "benchmarks.tasks.ant", {"trail": "john_muir"}, 60,
+        (10_000, 30_000), (*DETERMINISTIC, "islands + cache + restarts"),
         "Jefferson et al.'s John Muir trail (Tracker, 1991): 32 x 32 torus, 89 pellets, "
         "200 time steps; solved when all 89 are eaten.",
         (("genetic algorithm on FSAs, Tracker (Jefferson et al. 1991), population 65,536 "

@@ -10,7 +10,9 @@ Randomness: the breeding generator is ``SeedSequence(seed, spawn_key=(0,))``; th
 of individual ``i`` in generation ``g`` come from ``SeedSequence(seed, spawn_key=(1, g, i))``
 (``(1, g)`` for every individual with common random numbers). Nothing depends on which
 worker evaluates what, so a run is the same on any backend and number of workers, and a run
-resumed from a checkpoint is the same as one never interrupted.
+resumed from a checkpoint is the same as one never interrupted. Islands (``islands`` > 1)
+change none of this: they are slices of the one population, bred one after the other from
+the same breeding generator, and migration draws nothing at random.
 """
 
 from __future__ import annotations

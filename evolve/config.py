@@ -73,7 +73,8 @@ class EvolutionConfig:
       k - 1, as PyEvolve's MPI migrator) or ``complete`` (from every other island).
       Migration draws no random numbers.
     - ``restart_after``: an island whose best has not improved for this many generations is
-      restarted: its best individual stays, the rest become fresh random FSAs (0: never).
+      restarted: its elites (at least its best) stay, the rest become fresh random FSAs
+      (0: never).
     - ``unique_children``: a child whose genome equals one already met (in this generation,
       or evaluated before when ``cache`` is on) is mutated again (up to 8 times) until it
       is new, so a generation spends its evaluations on new genomes.
