@@ -278,10 +278,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="also write the best file to examples/move_to_reach.fsa.yaml")
     p.add_argument("--out", default=str(ROOT / "docs" / "results"),
                    help="output folder (default docs/results)")
+    p.add_argument("--picture-only", action="store_true",
+                   help="only redraw move_to_push_robot.png from the move_to_push_best.fsa.yaml "
+                   "already in --out (the same world as the report's caption); nothing is "
+                   "evolved")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.picture_only:
+        best_path = out / "move_to_push_best.fsa.yaml"
+        written = load_fsa(best_path)
+        topology = written.meta["provenance"]["settings"]["network"]
+        caption = render_robot(written, topology, out / "move_to_push_robot.png")
+        print(f"wrote {out / 'move_to_push_robot.png'}: {caption}")
+        return 0
     cfg = EvolutionConfig(**{**PRESETS[PRESET], "generations": args.generations})
     seeds = list(range(args.seeds))
     topologies = [t for t in args.topologies.split(",") if t]

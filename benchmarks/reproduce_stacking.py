@@ -129,11 +129,11 @@ def figure12(best: Path, out: Path, reps: int, workers: int) -> list[dict[str, f
              "stacked": float(r["solved_rate"])} for r in rows]
 
 
-def kinematic_scenes(fsa: FSA, n: int, picture: Path | None
+def kinematic_scenes(fsa: FSA, n: int, picture: Path | None, *, picture_only: bool = False
                      ) -> tuple[int, Counter[str], str]:
     """Runs ``fsa`` on ``n`` kinematic scenes: stacked count, outcomes, and the caption of
     the picture (when ``picture`` is given) of the PR2 at the end of the first successful
-    run."""
+    run; with ``picture_only``, stops once the picture is drawn."""
     from robots.model import load_pr2
     from robots.render import render_configuration
     from skills.replay import robot_pose, world_scene
@@ -154,6 +154,8 @@ def kinematic_scenes(fsa: FSA, n: int, picture: Path | None
             render_configuration(load_pr2(), robot_pose(bb), picture, scene=world_scene(bb),
                                  title="PR2 at the end of a stacking run")
             caption = (f"scene {k} ({'near' if near else 'far'} start), {result.steps} steps")
+            if picture_only:
+                break
         print(f"scene {k}: {result.outcome}", file=sys.stderr, flush=True)
     return stacked, outcomes, caption
 
@@ -210,9 +212,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--reps", type=int, default=3000, help="runs per p_fail in figure 12")
     p.add_argument("--scenes", type=int, default=100, help="kinematic scenes")
     p.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    p.add_argument("--picture-only", action="store_true",
+                   help="only redraw stacking_robot.png from the stacking_best.fsa.yaml already "
+                   "in --out (the same scene the report's caption names); nothing is evolved")
     args = p.parse_args(argv)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
+    if args.picture_only:
+        _, _, caption = kinematic_scenes(load_fsa(out / "stacking_best.fsa.yaml"), args.scenes,
+                                         out / "stacking_robot.png", picture_only=True)
+        print(f"wrote {out / 'stacking_robot.png'}: {caption}")
+        return 0
     t0 = time.perf_counter()
     cfg = EvolutionConfig(**{
         **PRESETS[args.preset], "generations": args.generations, "population": args.population,

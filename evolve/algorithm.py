@@ -105,6 +105,31 @@ class EvolutionResult:
     faults: Faults = field(default_factory=Faults)  # over the whole run
     fresh: dict[str, Any] = field(default_factory=dict)  # see check_fresh (empty: not run)
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the summary, the fitness per generation and the best FSA."""
+        from skillcompose.display import html_table
+        from skillcompose.draw import to_svg
+
+        from .rundir import history_svg
+
+        rows = [
+            ("solved", self.solved), ("best fitness", f"{self.best_fitness:g}"),
+            ("generations", f"{self.generations} of {self.budget}"),
+            ("evaluations", self.evaluations), ("wall time", f"{self.wall_time:.1f} s"),
+            ("states (evolved)", f"{len(self.best_fsa.states)} "
+                                 f"({len(self.evolved_fsa.states)})"),
+            ("seed", self.seed),
+        ]
+        if self.fresh:
+            rows.append(("fresh episodes", f"{100 * self.fresh['success_rate']:.1f} % of "
+                                           f"{self.fresh['episodes']} reach the target"))
+        if self.faults.total:
+            rows.append(("faults", self.faults.describe()))
+        if self.out_dir is not None:
+            rows.append(("run directory", self.out_dir))
+        return (html_table(("", ""), rows) + history_svg([r.to_dict() for r in self.history])
+                + to_svg(self.best_fsa))
+
     @property
     def nothing_succeeded(self) -> bool:
         """Every evaluation of the run failed (raised in every episode, timed out, or killed

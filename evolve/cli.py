@@ -6,17 +6,22 @@ import argparse
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from skillcompose.arguments import add_json_option, print_json
 from skillcompose.errors import SkillcomposeError
-from skillcompose.task import Task, load_task, parse_settings
 
-from .algorithm import evolve
+from .config import EVALUATION_BACKENDS as BACKENDS
 from .config import PRESETS, TOPOLOGIES, EvolutionConfig
 from .errors import EvolutionError
-from .evaluation import BACKENDS
-from .resume import FREE_SETTINGS, check_record, load_recorded_task, normalise
-from .rundir import RunDir
+
+if TYPE_CHECKING:
+    from skillcompose.task import Task
+
+    from .algorithm import EvolutionResult
+
+# The evolution itself (numpy, the runtime, the evaluators) is imported by `handle`, when the
+# command runs: `skillcompose --help` imports this module and must stay quick.
 
 __all__ = ["add_arguments", "handle", "main", "register_cli"]
 
@@ -145,7 +150,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--worker-max-growth-mb", type=number(0.0, 10.0**7), metavar="MB",
                    help="replace a worker whose memory grew by more than MB (default 1024; "
                    "0: never)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_json_option(p)
 
 
 def _hold_hint(cfg: EvolutionConfig, task: Task) -> str:
@@ -206,6 +211,10 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
 def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[str]:
     """The options given with --resume that would change the run, each with the run's
     value."""
+    from skillcompose.task import parse_settings
+
+    from .resume import FREE_SETTINGS, normalise
+
     cfg = record["config"]
     problems: list[str] = []
 
@@ -257,6 +266,9 @@ def _limit_text(limit: Any) -> str:
 def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     """The recorded task of the run in ``--resume DIR`` and the recorded settings, after
     refusing anything given that would change the run."""
+    from .resume import check_record, load_recorded_task
+    from .rundir import RunDir
+
     rundir = RunDir(args.resume)
     checkpoint = rundir.load_checkpoint()
     record = check_record(checkpoint.get("run"), str(rundir.checkpoint))
@@ -271,6 +283,12 @@ def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from skillcompose.task import load_task, parse_settings
+
+    from .algorithm import evolve
+    from .resume import FREE_SETTINGS
+    from .rundir import RunDir
+
     try:
         if args.resume:
             task, record = _resume(args)
@@ -304,13 +322,17 @@ def handle(args: argparse.Namespace) -> int:
             task, cfg, seed=seed, workers=workers, backend=backend,
             out_dir=None if args.resume else args.out,
             seed_fsa=None if args.resume else args.seed_fsa,
-            progress=not args.quiet, resume=args.resume,
+            progress=not getattr(args, "quiet", False), resume=args.resume,
             simplify_result=simplify_result, simplify_trials=simplify_trials,
             check_trials=check_trials,
         )
     except SkillcomposeError as exc:
         print(f"skillcompose evolve: error: {exc}", file=sys.stderr)
         return 2
+    if getattr(args, "json", False):
+        print_json(summary_document(result, task.name))
+        _warn(result, cfg, task)
+        return 1 if result.nothing_succeeded else 0
     state = "solved" if result.solved else "not solved"
     if result.unchanged:
         why = "solved" if result.solved else (
@@ -336,12 +358,28 @@ def handle(args: argparse.Namespace) -> int:
             f"{100 * fresh['success_rate']:.1f} % reach the target, mean fitness "
             f"{fresh['mean_fitness']:g}"
         )
-        if fresh["differs"]:
-            print(
-                f"warning: that differs from the evolved fitness {result.best_fitness:g}: "
-                "evolution measured it on its own few episodes; trust the fresh ones "
-                f"({_hold_hint(cfg, task)})", file=sys.stderr,
-            )
+    _warn(result, cfg, task)
+    if result.files:
+        print("files written:")
+        for f in result.files:
+            print(f"  {f}")
+        print(f"run it: {result.run_command}")
+    return 1 if result.nothing_succeeded else 0
+
+
+def _warn(result: EvolutionResult, cfg: EvolutionConfig,
+          task: Task) -> None:
+    """The warnings and faults of a run, on standard error."""
+    if result.unchanged:
+        return
+    fresh = result.fresh
+    if fresh and fresh["differs"]:
+        print(
+            f"warning: that differs from the evolved fitness {result.best_fitness:g}: "
+            "evolution measured it on its own few episodes; trust the fresh ones "
+            f"({_hold_hint(cfg, task)})",
+            file=sys.stderr,
+        )
     faults = result.faults
     if faults.total:
         print(f"faults: {faults.describe()} in {faults.jobs} evaluations "
@@ -349,18 +387,30 @@ def handle(args: argparse.Namespace) -> int:
               file=sys.stderr)
         if faults.first_error:
             print(f"first error {faults.first_error}", file=sys.stderr)
-    if result.files:
-        print("files written:")
-        for f in result.files:
-            print(f"  {f}")
-        print(f"run it: {result.run_command}")
     if result.nothing_succeeded:
         print(
             f"skillcompose evolve: error: every one of the {faults.jobs} evaluations failed "
             "(see the first error above); fix the task or its skills", file=sys.stderr,
         )
-        return 1
-    return 0
+
+
+def summary_document(result: EvolutionResult, task_name: str) -> dict[str, Any]:
+    """What ``skillcompose evolve --json`` prints: the run's summary (keys documented in the
+    README)."""
+    faults = result.faults
+    return {
+        "command": "evolve", "task": task_name, "seed": result.seed,
+        "solved": result.solved, "unchanged": result.unchanged,
+        "best_fitness": result.best_fitness, "generations": result.generations,
+        "budget": result.budget, "evaluations": result.evaluations,
+        "wall_time_s": result.wall_time, "states": len(result.best_fsa.states),
+        "evolved_states": len(result.evolved_fsa.states),
+        "fresh": dict(result.fresh) or None,
+        "faults": {"jobs": faults.jobs, "failed": faults.failed, "total": faults.total,
+                   "first_error": faults.first_error or None},
+        "out_dir": str(result.out_dir) if result.out_dir is not None else None,
+        "files": [str(f) for f in result.files], "run_command": result.run_command or None,
+    }
 
 
 def register_cli(subparsers: Any) -> None:
@@ -375,8 +425,14 @@ def register_cli(subparsers: Any) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from skillcompose.arguments import add_output_options
+
     parser = argparse.ArgumentParser(prog="skillcompose")
-    register_cli(parser.add_subparsers(dest="command", required=True))
+    add_output_options(parser, top=True)
+    sub = parser.add_subparsers(dest="command", required=True)
+    register_cli(sub)
+    for command in sub.choices.values():
+        add_output_options(command)
     return parser
 
 

@@ -223,6 +223,9 @@ class EvolutionConfig:
         return dataclasses.replace(self, **changes)
 
 
+EVALUATION_BACKENDS = ("serial", "process", "ray")
+"""Where evaluations run: in the calling process, a local process pool, or Ray."""
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
     "robust": {

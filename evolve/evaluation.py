@@ -43,6 +43,7 @@ import numpy as np
 from skillcompose.executor import CompiledFSA, error_summary
 from skillcompose.task import Task, TaskRef
 
+from .config import EVALUATION_BACKENDS
 from .errors import EvolutionError
 from .genome import Genome, GenomeCompiler, SkillSet
 
@@ -62,7 +63,7 @@ __all__ = [
     "make_evaluator",
 ]
 
-BACKENDS = ("serial", "process", "ray")
+BACKENDS = EVALUATION_BACKENDS  # where evaluations run (defined with the settings)
 
 # a job's fault code: (episodes that raised) << 2 | flags
 TIMED_OUT = 1

@@ -22,6 +22,7 @@ from typing import Any
 
 from skillcompose import FSA, CompiledFSA, ParamSpec, Skill, State
 from skillcompose.fsa import RESERVED_OUTCOMES
+from skillcompose.params import param_problems
 from skillcompose.task import Task
 
 from .errors import SeedFSAError
@@ -340,22 +341,12 @@ class Genome:
                 )
                 continue
             c = skills.choices[k]
-            values: dict[str, Any] = {}
-            for p in c.params:
-                value = st.params.get(p.name, p.default)
-                try:
-                    value = p.check(value, f"state {sname}")
-                except Exception as exc:
-                    problems.append(f"{src}{_line(fsa, 'states', sname, 'params', p.name)}: {exc}")
-                    value = p.default
-                values[p.name] = value
+            values, bad = param_problems(c.name, c.params, st.params, sname)
+            problems.extend(
+                f"{src}{_line(fsa, 'states', sname, 'params', p.key or '')}: {p.render()}"
+                for p in bad
+            )
             params = c.encode(values)
-            for pname in st.params:
-                if pname not in {p.name for p in c.params}:
-                    problems.append(
-                        f"{src}{line}: state {sname}: skill {c.name} has no parameter "
-                        f"{pname!r}; its parameters are {[p.name for p in c.params]}"
-                    )
             edges: list[int] = []
             for o in c.outcomes:
                 t = st.transitions.get(o)

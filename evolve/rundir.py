@@ -247,6 +247,19 @@ def draw_fsa(fsa: FSA, path: str | os.PathLike[str]) -> None:
 def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> None:
     """Best, mean and median fitness per generation (matplotlib's object API: no pyplot
     state, no backend switch)."""
+    _save_fig(_history_figure(history), Path(path))
+
+
+def history_svg(history: Sequence[Mapping[str, Any]]) -> str:
+    """The picture of :func:`plot_history` as SVG text (for a notebook)."""
+    import io
+
+    buffer = io.StringIO()
+    _history_figure(history).savefig(buffer, format="svg")
+    return buffer.getvalue()
+
+
+def _history_figure(history: Sequence[Mapping[str, Any]]) -> Any:
     from matplotlib.figure import Figure
 
     gens = [r["generation"] for r in history]
@@ -259,7 +272,7 @@ def plot_history(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[s
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    _save_fig(fig, Path(path))
+    return fig
 
 
 def _save_fig(fig: Any, path: Path) -> None:

@@ -301,10 +301,12 @@ def register(
                              kinematic=kinematic)
     if kinematic:
         from skills import kinematic as skills_kinematic
+        from skills.kinematic_world import KinematicWorld
 
+        world = KinematicWorld()
         for s in (skills_kinematic.grasp_param, skills_kinematic.move_gripper_to_stack,
                   skills_kinematic.open_gripper):
-            registry.add(s)
+            registry.add(s.in_world(world))
 
 
 def make_task(

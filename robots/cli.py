@@ -16,11 +16,17 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from robots.collision import Box, Scene
 from robots.errors import InvalidConfiguration, RobotModelError
-from robots.model import RobotModel, RobotPose, load_pr2
+from skillcompose.arguments import note
+
+if TYPE_CHECKING:
+    from robots.collision import Scene
+    from robots.model import RobotModel, RobotPose
+
+# Pinocchio (robots.model, robots.collision) is imported when a robot command runs, not when
+# `skillcompose --help` registers the command.
 
 _POSE_KEYS = {"base_xy_yaw", "torso_height_m", "arm_rad", "boxes"}
 _BOX_KEYS = {"center_m", "half_extents_m", "yaw_rad", "name"}
@@ -44,6 +50,9 @@ def register_cli(subparsers: Any) -> None:
 
 def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
     """A pose and scene from ``neutral``, ``tucked`` or a JSON file (see module doc)."""
+    from robots.collision import Box, Scene
+    from robots.model import RobotPose
+
     if spec == "neutral":
         return model.neutral_pose(), Scene()
     if spec == "tucked":
@@ -90,6 +99,7 @@ def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
 
 def run_robot_cli(args: argparse.Namespace) -> int:
     """Run a ``robot`` sub-command; returns the exit code (errors printed, code 2)."""
+    from robots.model import load_pr2
     from robots.render import render_configuration
 
     try:
@@ -97,7 +107,7 @@ def run_robot_cli(args: argparse.Namespace) -> int:
         if args.robot_command == "show":
             pose, scene = load_configuration(model, args.config)
             out = render_configuration(model, pose, args.out, scene=scene)
-            print(f"wrote {out}")
+            note(args, f"wrote {out}")  # a note on standard error, as every command's
             return 0
     except RobotModelError as exc:
         print(f"error: {exc}")

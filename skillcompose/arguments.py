@@ -9,31 +9,44 @@ what is allowed and what was given, and exits with status 2::
 
 Checks that need more than the argument (a backend no loaded skill has) raise
 :class:`UsageError` later, which the command line also reports with status 2.
+
+The options every subcommand shares live here too, so that a package adding a subcommand
+(``register_cli``) follows the same conventions: :func:`add_output_options` (``-q``/``-v``,
+which ``skillcompose`` adds to every subcommand by itself), :func:`add_json_option`,
+:func:`verbosity`, :func:`note` and :func:`print_json`.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import re
-from collections.abc import Callable
+import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip
 
 __all__ = [
     "MAX_SEED",
     "MAX_TRIALS",
     "MAX_WORKERS",
     "UsageError",
+    "add_json_option",
+    "add_output_options",
     "existing_dir",
     "module_or_file",
+    "note",
     "number",
     "output_dir",
     "output_file",
+    "print_json",
     "seed",
     "setting",
+    "verbosity",
     "whole",
 ]
 
@@ -53,7 +66,7 @@ class UsageError(SkillcomposeError, ValueError):
 
 
 def _shown(text: str) -> str:
-    return repr(text if len(text) <= 40 else text[:37] + "...")
+    return repr(clip(text))
 
 
 def whole(low: int, high: int) -> Callable[[str], int]:
@@ -170,3 +183,69 @@ def existing_dir(text: str) -> str:
     if not Path(text).is_dir():
         raise argparse.ArgumentTypeError(f"no directory {_shown(text)}")
     return text
+
+
+# ---------------------------------------------------------------------------------------
+# options every subcommand shares
+# ---------------------------------------------------------------------------------------
+def add_output_options(p: argparse.ArgumentParser, *, top: bool = False) -> None:
+    """``-q/--quiet`` and ``-v/--verbose``: accepted before and after the subcommand, with
+    one meaning everywhere. ``-q``: standard output keeps the result, standard error only
+    warnings and errors (no progress, no notes). ``-v`` (repeatable): notes on standard
+    error about what is loaded and how long the command took. ``top`` is the
+    ``skillcompose`` parser itself (the defaults); on a subcommand the options leave a value
+    given before it alone unless given again. An option the parser already has is kept."""
+    default: Any = 0 if top else argparse.SUPPRESS
+    quiet_default: Any = False if top else argparse.SUPPRESS
+    known = set(p._option_string_actions)  # a subcommand may have its own -q already
+    if not {"-q", "--quiet"} & known:
+        p.add_argument("-q", "--quiet", action="store_true", default=quiet_default,
+                       help="only the result on standard output; only warnings and errors "
+                       "on standard error (no progress)")
+    if not {"-v", "--verbose"} & known:
+        p.add_argument("-v", "--verbose", action="count", default=default,
+                       help="notes on standard error: what is loaded, how long it took")
+
+
+def add_json_option(p: argparse.ArgumentParser) -> None:
+    """``--json``: the result as one JSON document on standard output, nothing else there."""
+    p.add_argument("--json", action="store_true",
+                   help="print the result as one JSON document on standard output (notes, "
+                   "warnings and progress go to standard error)")
+
+
+def verbosity(args: argparse.Namespace) -> int:
+    """-1 with ``-q``, else the number of ``-v`` given (0 by default)."""
+    if getattr(args, "quiet", False):
+        return -1
+    return int(getattr(args, "verbose", 0) or 0)
+
+
+def note(args: argparse.Namespace, text: str, *, level: int = 0) -> None:
+    """Print ``text`` on standard error unless the verbosity is below ``level`` (level 0:
+    an ordinary note, hidden by ``-q``; level 1: shown with ``-v``)."""
+    if verbosity(args) >= level:
+        print(text, file=sys.stderr)
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with only JSON types: NaN and infinities become null, tuples lists,
+    paths and other objects their text."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        items = sorted(value, key=str) if isinstance(value, (set, frozenset)) else value
+        return [_plain(v) for v in items]
+    if hasattr(value, "item") and callable(value.item):  # a numpy scalar
+        return _plain(value.item())
+    return str(value)
+
+
+def print_json(document: Mapping[str, Any]) -> None:
+    """Write ``document`` as one JSON document (and a newline) on standard output."""
+    sys.stdout.write(json.dumps(_plain(document), indent=2, allow_nan=False) + "\n")
+    sys.stdout.flush()

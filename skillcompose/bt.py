@@ -162,7 +162,7 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
             maps ``success`` to ``SUCCESS``.
         seed: activation ``k`` of this behaviour runs with the ``k``-th child of ``seed``.
         blackboard: the FSA's own blackboard (default: a new one); kept across activations.
-        time_limits: state → wall-clock limit [s] (:mod:`skillcompose.ticking`).
+        time_limits: state → wall-clock limit [s] (:mod:`skillcompose.executor`).
         show_states: list the FSA's states as display-only children, so py_trees' renderings
             (``py_trees.display.ascii_tree``) show the FSA inside the tree. They are never
             ticked; the running state shows ``RUNNING``.
@@ -204,11 +204,8 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
         self._seeds = (
             seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         )
-        reads: set[str] = set()
-        writes: set[str] = set()
-        for impl, _ in compiled.impls:
-            reads |= impl.spec.reads
-            writes |= impl.spec.writes
+        reads = frozenset().union(*(impl.spec.reads for impl, _ in compiled.impls))
+        writes = frozenset().union(*(impl.spec.writes for impl, _ in compiled.impls))
         ident = compiled.fsa.name or label.replace(" ", "_")
         self.bridge = BlackboardBridge(
             f"FSA {label}", to_tree=writes, from_tree=reads | writes,
@@ -292,10 +289,9 @@ class _StateView(py_trees.behaviour.Behaviour):
 def _status_map(
     given: Mapping[str, Status | str] | None, compiled: CompiledFSA, owner: str
 ) -> dict[str, Status]:
-    out: dict[str, Status] = {"success": Status.SUCCESS}
     if given is None:
-        return out
-    out = {}
+        return {"success": Status.SUCCESS}
+    out: dict[str, Status] = {}
     valid = [*compiled.terminals, *RESERVED_OUTCOMES]
     for outcome, status in given.items():
         if outcome not in valid:
@@ -372,7 +368,7 @@ class TreeSkill(Skill):
     """A py_trees subtree as a skill: ``success`` / ``failure`` from its final status."""
 
     __slots__ = ("_setup", "bridge", "factory", "tree")
-    kind = "tree"
+    long_running = True
 
     def __init__(
         self, spec: SkillSpec, source: TreeSource, bridge: BlackboardBridge
@@ -385,10 +381,6 @@ class TreeSkill(Skill):
             self.tree, self.factory = None, source
         self.bridge = bridge
         self._setup: set[int] = set()
-
-    @property
-    def long_running(self) -> bool:
-        return True
 
     def starter(self, backend: str | None = None) -> Starter | None:
         return self._start

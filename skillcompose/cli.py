@@ -1,8 +1,17 @@
 """The ``skillcompose`` command line (also ``python -m skillcompose``).
 
 Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. Other packages add
-theirs (``evolve``, ``robustness``, ``robot``) through a ``register_cli(subparsers)``
+theirs (``evolve``, ``robustness``, ``robot``, ``view``) through a ``register_cli(subparsers)``
 function in the modules listed in :data:`SUBCOMMAND_MODULES`.
+
+Conventions every subcommand follows (those added by other packages too): ``-q``/``-v``
+are accepted before and after the subcommand with one meaning (see
+:func:`skillcompose.arguments.add_output_options`; :func:`build_parser` adds them to every
+subcommand); a command with a result document takes ``--json`` and then prints one JSON
+document on standard output and nothing else there. A module named in
+:data:`SUBCOMMAND_MODULES` must import quickly: heavy packages (Pinocchio, CasADi,
+matplotlib, Ray) are imported by the command that needs them, not by ``register_cli``, so
+that ``skillcompose --help`` and ``skillcompose validate`` answer at once.
 """
 
 from __future__ import annotations
@@ -11,20 +20,33 @@ import argparse
 import importlib
 import os
 import sys
+import time
 import traceback
 from collections.abc import Sequence
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
-import numpy as np
+from . import __version__
+from .arguments import (
+    MAX_TRIALS,
+    UsageError,
+    add_json_option,
+    add_output_options,
+    module_or_file,
+    note,
+    output_file,
+    print_json,
+    seed,
+    setting,
+    whole,
+)
+from .errors import FSAValidationError, Problem, SkillcomposeError
 
-from .arguments import MAX_TRIALS, UsageError, module_or_file, output_file, seed, setting, whole
-from .blackboard import DELETED
-from .errors import SkillcomposeError
-from .executor import compile_fsa, error_summary, summarize
-from .fsafile import load_fsa
-from .progress import progress_bar
-from .registry import Registry
-from .task import Task, load_task, parse_settings, trials
+if TYPE_CHECKING:
+    from .registry import Registry
+    from .task import Task
+
+# The runtime (numpy, the executor, the file reader, tasks) is imported by the command that
+# runs, so that `skillcompose --help` answers at once.
 
 __all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
 
@@ -41,6 +63,7 @@ SUBCOMMAND_MODULES = (
     "evolve.cli",
     "skillcompose.robustness",
     "robots.cli",
+    "skillcompose_view.cli",
 )
 
 
@@ -48,12 +71,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="skillcompose",
         description="Compose robot skills into finite state automata, run and evolve them.",
-        epilog="Exit status: 0 done, 1 failed (an output that cannot be written, an "
+        epilog="-q/-v may be given before or after the subcommand. --json (run, validate, "
+        "skills, evolve): one JSON document on standard output. "
+        "Exit status: 0 done, 1 failed (an output that cannot be written, an "
         "unexpected error), 2 usage error (an argument not allowed, an invalid FSA file, a "
         "task or skills module that does not load), 130 interrupted.",
     )
+    parser.add_argument("--version", action="version", version=f"skillcompose {__version__}")
     parser.add_argument("--traceback", action="store_true",
                         help="show the traceback of an unexpected error")
+    add_output_options(parser, top=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     def skills_args(p: argparse.ArgumentParser) -> None:
@@ -83,11 +110,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print each step of the first run, and a traceback on error")
     p.add_argument("--propagate", action="store_true",
                    help="let a skill's exception stop the command with its traceback")
+    add_json_option(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("validate", help="check an FSA file (against skills when given)")
     p.add_argument("file")
     skills_args(p)
+    add_json_option(p)
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("show", help="draw an FSA file (DOT, Mermaid, SVG, PNG)")
@@ -101,6 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("skills", help="list skills: parameters, ranges, outcomes, keys")
     skills_args(p)
+    add_json_option(p)
     p.set_defaults(func=cmd_skills)
 
     for name in SUBCOMMAND_MODULES:
@@ -113,6 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
         register = getattr(module, "register_cli", None)
         if callable(register):
             register(sub)
+    for command in sub.choices.values():  # every subcommand, those of other packages too
+        add_output_options(command)
     return parser
 
 
@@ -130,8 +162,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     loud = any(getattr(args, flag, False) for flag in ("traceback", "trace", "propagate"))
     prog = f"skillcompose {args.command}"
+    started = time.perf_counter()
     try:
-        return int(func(args))
+        status = int(func(args))
+        note(args, f"{prog}: exit status {status} after {time.perf_counter() - started:.2f} s",
+             level=1)
+        return status
+    except FSAValidationError as exc:
+        if getattr(args, "json", False) and args.command == "validate":
+            print_json(_invalid_document(args.file, exc))
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2
     except SkillcomposeError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
@@ -158,6 +199,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 # ---------------------------------------------------------------------------------------
 def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
+    from .registry import Registry
+    from .task import load_task, parse_settings
+
+    started = time.perf_counter()
     task: Task | None = None
     if getattr(args, "task", None):
         task = load_task(args.task, **parse_settings(args.settings))
@@ -175,6 +220,9 @@ def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
     registry.load_entry_points()
     if args.backend and len(registry):
         check_backend(registry, args.backend)
+    note(args, f"skillcompose {args.command}: loaded {len(registry)} skills"
+         + (f" and task {task.name}" if task is not None else "")
+         + f" in {time.perf_counter() - started:.2f} s", level=1)
     return registry, task
 
 
@@ -189,6 +237,13 @@ def check_backend(registry: Registry, backend: str) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .executor import compile_fsa, error_summary, summarize
+    from .fsafile import load_fsa
+    from .progress import progress_bar
+    from .task import trials
+
     fsa = load_fsa(args.file)
     registry, task = _load(args)
     if not len(registry):
@@ -200,15 +255,19 @@ def cmd_run(args: argparse.Namespace) -> int:
             compile_fsa(fsa, registry, args.backend)
     except SkillcomposeError as exc:
         raise SkillcomposeError(str(exc)) from None
+    step_limit = task.step_limit if task is not None else fsa.step_limit
     if task is not None and fsa.step_limit != task.step_limit:
-        print(f"{args.file}: step limit {task.step_limit} from task {task.name} (the file's "
-              f"{fsa.step_limit} applies when it runs without --task)", file=sys.stderr)
+        note(args, f"{args.file}: step limit {task.step_limit} from task {task.name} (the "
+             f"file's {fsa.step_limit} applies when it runs without --task)")
     results = []
     fitness: list[float] = []
-    bar = progress_bar(args.trials, "run")  # on a terminal, once it takes a while
+    # on a terminal, once it takes a while; never with -q
+    bar = progress_bar(args.trials, "run", disable=getattr(args, "quiet", False))
     options: dict[str, Any] = {"trace_first": args.trace, "propagate": args.propagate}
     loop = task.each_trial(compiled, args.seed, args.trials, **options) if task is not None \
         else trials(compiled, args.seed, args.trials, **options)
+    as_json = getattr(args, "json", False)
+    trace_out = sys.stderr if as_json else sys.stdout  # --json: stdout holds the document
     for trial in loop:
         bar.update(1)
         result = trial.result
@@ -216,28 +275,48 @@ def cmd_run(args: argparse.Namespace) -> int:
         if task is not None:
             fitness.append(trial.fitness)
         if result.trace is not None:
-            _print_trace(result)
+            _print_trace(result, trace_out)
         if result.error is not None and args.trace and trial.number == 0:
             print(f"state {result.last_state} raised:", file=sys.stderr)
             traceback.print_exception(result.error, file=sys.stderr)
     bar.close()
     s = summarize(results)
-    print(f"{args.file}: {s['trials']} run(s), seed {args.seed}, backend {compiled.backend}")
-    width = max(len(o) for o in s["outcomes"])
-    for outcome, count in s["outcomes"].items():
-        print(f"  {outcome:<{width}}  {count:>7}  {100.0 * count / s['trials']:6.2f}%")
-    print(f"  mean steps {s['mean_steps']:.2f}")
-    if task is not None:
-        arr = np.asarray(fitness)
-        print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
-              f"({'lower' if task.minimize else 'higher'} is better)")
     errors = [(k, r) for k, r in enumerate(results) if r.error is not None]
+    if getattr(args, "json", False):
+        first: dict[str, Any] | None = None
+        if errors:
+            k, r = errors[0]
+            assert r.error is not None
+            first = {"run": k, "state": r.last_state,
+                     "error": f"{type(r.error).__name__}: {r.error}"}
+        arr = np.asarray(fitness)
+        print_json({
+            "command": "run", "file": args.file, "seed": args.seed, "trials": s["trials"],
+            "backend": compiled.backend, "task": task.name if task is not None else None,
+            "step_limit": step_limit, "outcomes": s["outcomes"],
+            "mean_steps": s["mean_steps"],
+            "fitness": None if task is None else {
+                "mean": float(arr.mean()), "std": float(arr.std()),
+                "minimize": task.minimize},
+            "errors": {"count": len(errors), "first": first},
+        })
+    else:
+        print(f"{args.file}: {s['trials']} run(s), seed {args.seed}, backend "
+              f"{compiled.backend}")
+        width = max(len(o) for o in s["outcomes"])
+        for outcome, count in s["outcomes"].items():
+            print(f"  {outcome:<{width}}  {count:>7}  {100.0 * count / s['trials']:6.2f}%")
+        print(f"  mean steps {s['mean_steps']:.2f}")
+        if task is not None:
+            arr = np.asarray(fitness)
+            print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
+                  f"({'lower' if task.minimize else 'higher'} is better)")
     if errors and not args.trace:
-        k, first = errors[0]
-        assert first.error is not None
+        k, first_result = errors[0]
+        assert first_result.error is not None
         print(
             f"  {len(errors)} run(s) ended in error; the first (run {k}) in state "
-            f"{first.last_state}: {error_summary(first.error)}\n"
+            f"{first_result.last_state}: {error_summary(first_result.error)}\n"
             "  rerun with --trace for the whole traceback",
             file=sys.stderr,
         )
@@ -248,33 +327,50 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _short(v: Any) -> str:
-    if v is DELETED:
-        return "∅"
-    text = repr(v)
-    return text if len(text) <= 60 else text[:57] + "..."
+def _print_trace(result: Any, out: Any = None) -> None:
+    from .display import short_value as _short
 
-
-def _print_trace(result: Any) -> None:
+    out = out if out is not None else sys.stdout
     for ev in result.trace:
-        print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}")
+        print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}",
+              file=out)
         for key, (old, new) in ev.changes.items():
-            print(f"        {key}: {_short(old)} => {_short(new)}")
-    print(f"ended: {result.outcome} after {result.steps} step(s)")
+            print(f"        {key}: {_short(old)} => {_short(new)}", file=out)
+    print(f"ended: {result.outcome} after {result.steps} step(s)", file=out)
+
+
+def _problem_document(problem: Problem) -> dict[str, Any]:
+    return {"line": problem.line, "column": problem.column, "state": problem.state,
+            "key": problem.key, "message": problem.message, "fix": problem.fix}
+
+
+def _invalid_document(file: str, exc: FSAValidationError) -> dict[str, Any]:
+    """``validate --json`` of a file that is not valid: its problems, with their lines."""
+    return {"command": "validate", "file": file, "valid": False, "states": None,
+            "start": None, "skills_checked": None, "unreachable": [], "traps": [],
+            "problems": [_problem_document(p) for p in exc.problems]}
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from .fsafile import load_fsa
+
     fsa = load_fsa(args.file)
+    skills_checked: int | None = None
     if args.skills or args.task:
         registry, _ = _load(args)
         fsa.validate(registry)
+        skills_checked = len(registry)
         checked = f"against {len(registry)} skills"
     else:
         checked = "structure only (give --skills or --task to check skills and parameters)"
-    from .graph import trap_states
-
     unreachable = fsa.unreachable()
-    traps = trap_states(fsa)
+    traps = fsa.trap_states()  # networkx-free: validate stays quick
+    if getattr(args, "json", False):
+        print_json({"command": "validate", "file": args.file, "valid": True,
+                    "states": len(fsa.states), "start": fsa.start,
+                    "skills_checked": skills_checked, "unreachable": list(unreachable),
+                    "traps": list(traps), "problems": []})
+        return 0
     print(f"{args.file}: valid, {len(fsa.states)} states, start {fsa.start}; {checked}")
     if unreachable:
         print(f"  warning: unreachable from {fsa.start}: {', '.join(unreachable)} "
@@ -287,11 +383,12 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_show(args: argparse.Namespace) -> int:
     from .draw import render, to_dot, to_mermaid
+    from .fsafile import load_fsa
 
     fsa = load_fsa(args.file)
     if args.output:
         out = render(fsa, args.output, params=not args.no_params)
-        print(f"wrote {out}")
+        note(args, f"wrote {out}")
     elif args.mermaid:
         sys.stdout.write(to_mermaid(fsa))
     else:
@@ -303,6 +400,10 @@ def cmd_skills(args: argparse.Namespace) -> int:
     registry, _ = _load(args)
     if not len(registry):
         raise SkillcomposeError("no skills loaded; give --skills MODULE or --task TASK")
+    if getattr(args, "json", False):
+        print_json({"command": "skills", "skills": [
+            _skill_document(registry, name) for name in sorted(registry.names())]})
+        return 0
     for name in sorted(registry.names()):
         spec = registry.spec(name)
         backends = ", ".join(registry.backends(name))
@@ -318,6 +419,18 @@ def cmd_skills(args: argparse.Namespace) -> int:
         if spec.doc:
             print("  " + spec.doc.splitlines()[0])
     return 0
+
+
+def _skill_document(registry: Registry, name: str) -> dict[str, Any]:
+    spec = registry.spec(name)
+    return {
+        "name": name, "backends": list(registry.backends(name)),
+        "outcomes": list(spec.outcomes),
+        "params": [{"name": p.name, "range": p.describe_range(), "default": p.default,
+                    "scale": p.scale} for p in spec.params],
+        "reads": sorted(spec.reads), "writes": sorted(spec.writes),
+        "doc": spec.doc.splitlines()[0] if spec.doc else "",
+    }
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,16 +9,21 @@ matplotlib with a layered layout of its own.
 
 from __future__ import annotations
 
+import io
 import shutil
 import subprocess
 from collections import defaultdict
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .errors import SkillcomposeError
-from .fsa import FSA
 
-__all__ = ["DrawingError", "draw_matplotlib", "layers", "render", "to_dot", "to_mermaid"]
+if TYPE_CHECKING:  # drawing needs only an FSA's attributes: fsa.py may import this module
+    from .fsa import FSA, State
+
+__all__ = ["DrawingError", "draw_matplotlib", "layers", "render", "to_dot", "to_mermaid",
+           "to_svg"]
 
 
 class DrawingError(SkillcomposeError):
@@ -38,6 +43,28 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _label(sname: str, st: State, params: bool) -> str:
+    text = sname if sname.startswith(st.skill) else f"{sname}\n({st.skill})"
+    if params and st.params:
+        text += "\n" + ", ".join(f"{k}={_fmt(v)}" for k, v in st.params.items())
+    return text
+
+
+def _routes(fsa: FSA) -> Iterator[tuple[str, str, str]]:
+    """(state, target, its outcomes joined by commas): parallel edges merged."""
+    for sname, st in fsa.states.items():
+        grouped: dict[str, list[str]] = defaultdict(list)
+        for outcome, target in st.transitions.items():
+            grouped[target].append(outcome)
+        for target, outs in grouped.items():
+            yield sname, target, ", ".join(outs)
+
+
+def _used_terminals(fsa: FSA) -> list[str]:
+    used = {t for st in fsa.states.values() for t in st.transitions.values()}
+    return [t for t in fsa.terminals if t in used]
+
+
 def to_dot(fsa: FSA, *, params: bool = True, title: str | None = None) -> str:
     """The FSA in Graphviz DOT. Parallel edges to one target merge into one labelled edge."""
     lines = [f"digraph {_q(fsa.name or 'fsa')} {{"]
@@ -48,28 +75,15 @@ def to_dot(fsa: FSA, *, params: bool = True, title: str | None = None) -> str:
     if label:
         lines.append(f"  labelloc=t; label={_q(label)};")
     for sname, st in fsa.states.items():
-        text = sname if sname.startswith(st.skill) else f"{sname}\n({st.skill})"
-        if params and st.params:
-            text += "\n" + ", ".join(f"{k}={_fmt(v)}" for k, v in st.params.items())
-        attrs = [f"label={_q(text)}"]
+        attrs = [f"label={_q(_label(sname, st, params))}"]
         if sname == fsa.start:
             attrs += ["color=red", "penwidth=2.5", "fontcolor=red"]
         lines.append(f"  {_q(sname)} [{', '.join(attrs)}];")
-    used_terminals = {
-        t for st in fsa.states.values() for t in st.transitions.values() if t in fsa.terminals
-    }
-    for t in fsa.terminals:
-        if t in used_terminals:
-            lines.append(
-                f"  {_q('__' + t)} [label={_q(t)}, shape=box, style=rounded];"
-            )
-    for sname, st in fsa.states.items():
-        grouped: dict[str, list[str]] = defaultdict(list)
-        for outcome, target in st.transitions.items():
-            grouped[target].append(outcome)
-        for target, outs in grouped.items():
-            node = "__" + target if target in fsa.terminals else target
-            lines.append(f"  {_q(sname)} -> {_q(node)} [label={_q(', '.join(outs))}];")
+    for t in _used_terminals(fsa):
+        lines.append(f"  {_q('__' + t)} [label={_q(t)}, shape=box, style=rounded];")
+    for sname, target, label in _routes(fsa):
+        node = "__" + target if target in fsa.terminals else target
+        lines.append(f"  {_q(sname)} -> {_q(node)} [label={_q(label)}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
 
@@ -81,15 +95,11 @@ def to_mermaid(fsa: FSA) -> str:
     for sname, st in fsa.states.items():
         lines.append(f'  state "{sname} ({st.skill})" as {ids[sname]}')
     lines.append(f"  [*] --> {ids[fsa.start]}")
-    for sname, st in fsa.states.items():
-        grouped: dict[str, list[str]] = defaultdict(list)
-        for outcome, target in st.transitions.items():
-            grouped[target].append(outcome)
-        for target, outs in grouped.items():
-            if target in fsa.terminals:
-                lines.append(f"  {ids[sname]} --> [*] : {', '.join(outs)} → {target}")
-            else:
-                lines.append(f"  {ids[sname]} --> {ids[target]} : {', '.join(outs)}")
+    for sname, target, label in _routes(fsa):
+        if target in fsa.terminals:
+            lines.append(f"  {ids[sname]} --> [*] : {label} → {target}")
+        else:
+            lines.append(f"  {ids[sname]} --> {ids[target]} : {label}")
     lines.append(f"  classDef start stroke:red,stroke-width:3px\n  class {ids[fsa.start]} start")
     return "\n".join(lines) + "\n"
 
@@ -136,6 +146,20 @@ def render(
     return out
 
 
+def to_svg(fsa: FSA, *, params: bool = True) -> str:
+    """The FSA as SVG text (what a notebook shows): laid out by Graphviz ``dot`` when it is
+    installed, else drawn with matplotlib."""
+    dot = shutil.which("dot")
+    if dot is not None:
+        proc = subprocess.run([dot, "-Tsvg"], input=to_dot(fsa, params=params), text=True,
+                              capture_output=True, timeout=60)
+        if proc.returncode == 0:
+            return proc.stdout
+    buffer = io.StringIO()
+    draw_matplotlib(fsa, buffer, params=params, fmt="svg")
+    return buffer.getvalue()
+
+
 def layers(fsa: FSA) -> dict[str, tuple[int, int]]:
     """(column, row) of every state and terminal outcome for a left-to-right drawing:
     the column is the breadth-first depth from the start; terminals take the last column;
@@ -160,10 +184,13 @@ def layers(fsa: FSA) -> dict[str, tuple[int, int]]:
     return pos
 
 
-def draw_matplotlib(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
+def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = True,
+                    fmt: str | None = None) -> Any:
     """A picture of the FSA without Graphviz: states in columns by their distance from the
     start (in red), terminal outcomes (boxes) on the right, one arrow per target labelled
-    with its outcomes, self-loops as labels over the state."""
+    with its outcomes, self-loops as labels over the state. ``out``: a file (its suffix
+    gives the format) or a text buffer with ``fmt="svg"``; returns ``out`` (a path as a
+    :class:`~pathlib.Path`)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import FancyArrowPatch
 
@@ -180,44 +207,35 @@ def draw_matplotlib(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
     ax = fig.add_subplot()
     boxes = {}
     for sname, st in fsa.states.items():
-        text = sname if sname.startswith(st.skill) else f"{sname}\n({st.skill})"
-        if params and st.params:
-            text += "\n" + ", ".join(f"{k}={_fmt(v)}" for k, v in st.params.items())
+        text = _label(sname, st, params)
         colour = "tab:red" if sname == fsa.start else "tab:blue"
         boxes[sname] = ax.annotate(
             text, xy[sname], ha="center", va="center", fontsize=8, zorder=3,
             bbox={"boxstyle": "round,pad=0.4", "fc": "white", "ec": colour,
                   "lw": 2.0 if sname == fsa.start else 1.0},
         )
-    used = {t for st in fsa.states.values() for t in st.transitions.values()}
-    for t in fsa.terminals:
-        if t in used:
-            boxes[t] = ax.annotate(t, xy[t], ha="center", va="center", fontsize=8, zorder=3,
-                                   bbox={"boxstyle": "square,pad=0.4", "fc": "#eef7ee",
-                                         "ec": "tab:green"})
-    for sname, st in fsa.states.items():
-        grouped: dict[str, list[str]] = defaultdict(list)
-        for outcome, target in st.transitions.items():
-            grouped[target].append(outcome)
-        for target, outs in grouped.items():
-            label = ", ".join(outs)
-            (x0, y0), (x1, y1) = xy[sname], xy[target]
-            if target == sname:
-                ax.annotate(f"↻ {label}", (x0, y0 + 0.42), ha="center", fontsize=7,
-                            color="dimgray")
-                continue
-            back = x1 <= x0  # edges going back or sideways bend more
-            rad = 0.35 if back else 0.12
-            ax.add_patch(FancyArrowPatch(
-                (x0, y0), (x1, y1), connectionstyle=f"arc3,rad={rad}", arrowstyle="-|>",
-                mutation_scale=10, color="gray", lw=1.0, shrinkA=28, shrinkB=28, zorder=1,
-            ))
-            mx, my = (x0 + x1) / 2, (y0 + y1) / 2
-            dx, dy = x1 - x0, y1 - y0  # the arc's bulge is to the right of the direction
-            ax.annotate(label, (mx + rad * dy / 2, my - rad * dx / 2), ha="center",
-                        va="center", fontsize=7, color="dimgray", zorder=2,
-                        bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
-                              "alpha": 0.8})
+    for t in _used_terminals(fsa):
+        boxes[t] = ax.annotate(t, xy[t], ha="center", va="center", fontsize=8, zorder=3,
+                               bbox={"boxstyle": "square,pad=0.4", "fc": "#eef7ee",
+                                     "ec": "tab:green"})
+    for sname, target, label in _routes(fsa):
+        (x0, y0), (x1, y1) = xy[sname], xy[target]
+        if target == sname:
+            ax.annotate(f"↻ {label}", (x0, y0 + 0.42), ha="center", fontsize=7,
+                        color="dimgray")
+            continue
+        back = x1 <= x0  # edges going back or sideways bend more
+        rad = 0.35 if back else 0.12
+        ax.add_patch(FancyArrowPatch(
+            (x0, y0), (x1, y1), connectionstyle=f"arc3,rad={rad}", arrowstyle="-|>",
+            mutation_scale=10, color="gray", lw=1.0, shrinkA=28, shrinkB=28, zorder=1,
+        ))
+        mx, my = (x0 + x1) / 2, (y0 + y1) / 2
+        dx, dy = x1 - x0, y1 - y0  # the arc's bulge is to the right of the direction
+        ax.annotate(label, (mx + rad * dy / 2, my - rad * dx / 2), ha="center",
+                    va="center", fontsize=7, color="dimgray", zorder=2,
+                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
+                          "alpha": 0.8})
     xs = [p[0] for p in xy.values()]
     ys = [p[1] for p in xy.values()]
     ax.set_xlim(min(xs) - 1.6, max(xs) + 1.6)
@@ -226,6 +244,9 @@ def draw_matplotlib(fsa: FSA, out: str | Path, *, params: bool = True) -> Path:
     ax.set_title(f"{fsa.name or 'FSA'}: start in red, terminal outcomes in green; "
                  f"runs over {fsa.step_limit} steps end in timeout", fontsize=9)
     fig.tight_layout()
-    out = Path(out)
-    fig.savefig(out, dpi=110)
-    return out
+    if isinstance(out, io.StringIO):
+        fig.savefig(out, format=fmt or "svg")
+        return out
+    path = Path(out)
+    fig.savefig(path, dpi=110, format=fmt)
+    return path

@@ -32,6 +32,11 @@ MAX_SHOWN_PROBLEMS = 20
 """An error message lists at most this many problems, then counts the rest."""
 
 
+def clip(text: str, n: int = 40) -> str:
+    """``text`` cut to ``n`` characters (ending ``...``) when longer: a value in a message."""
+    return text if len(text) <= n else text[:n - 3] + "..."
+
+
 class SkillcomposeError(Exception):
     """Base class of every error skillcompose raises on purpose."""
 

@@ -19,9 +19,9 @@ checked before each tick; an instant skill under a limit runs in a worker thread
 from __future__ import annotations
 
 import functools
-import math
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -31,6 +31,7 @@ from .activation import RUNNING, Activation, Starter, ThreadActivation
 from .blackboard import Access, Blackboard, _same
 from .errors import ParamError, SkillProtocolError, UndeclaredOutcomeError
 from .fsa import ERROR, FSA, PREEMPTED, TIMEOUT
+from .params import time_limit_problem
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -82,6 +83,12 @@ class RunResult(NamedTuple):
         if self.error is None:
             return ""
         return "".join(traceback.format_exception(self.error))
+
+    def _repr_html_(self) -> str:
+        """In a notebook: how the run ended and its trace as a table."""
+        from .display import run_result_html
+
+        return run_result_html(self)
 
 
 def error_summary(exc: BaseException, frames: int = 3) -> str:
@@ -242,12 +249,9 @@ def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> di
                 f"time_limits: FSA {fsa.name or ''} has no state {state!r}; "
                 f"its states are {names}"
             )
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                not math.isfinite(value) or value <= 0:
-            raise ParamError(
-                f"time_limits: state {state}: the limit must be a positive number of "
-                f"seconds, got {value!r}; write e.g. {{{state!r}: 2.0}}"
-            )
+        problem = time_limit_problem(value, state, "the limit", f"write e.g. {{{state!r}: 2.0}}")
+        if problem is not None:
+            raise ParamError(f"time_limits: {problem.render()}")
         out[state] = float(value)
     return out
 
@@ -613,9 +617,7 @@ def run_ticking(
     period: float = 0.0,
 ) -> RunResult:
     """Run once in tick-wise mode, ticking until the end: the one-call form of :class:`FSARun`."""
-    run = FSARun(
-        compiled, bb, rng, trace=trace, propagate=propagate, time_limits=time_limits
-    )
+    run = compiled.start(bb, rng, trace=trace, propagate=propagate, time_limits=time_limits)
     return run.run(max_ticks=max_ticks, period=period)
 
 
@@ -645,12 +647,9 @@ def trial_rngs(
 
 def summarize(results: Sequence[RunResult]) -> dict[str, Any]:
     """Outcome counts and mean steps over many runs."""
-    counts: dict[str, int] = {}
-    for r in results:
-        counts[r.outcome] = counts.get(r.outcome, 0) + 1
     n = len(results)
     return {
         "trials": n,
-        "outcomes": dict(sorted(counts.items(), key=lambda kv: -kv[1])),
+        "outcomes": dict(Counter(r.outcome for r in results).most_common()),
         "mean_steps": (sum(r.steps for r in results) / n) if n else 0.0,
     }

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import math
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .errors import FSAValidationError, ParamError, Problem, UnknownSkillError
+from .errors import FSAValidationError, Problem, UnknownSkillError, clip
+from .params import param_problems, time_limit_problem
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -54,7 +54,7 @@ class State:
     """One state: a skill, its parameters (in the skill's units) and its transitions.
 
     ``time_limit`` [s], when set, bounds the state's wall-clock time (for hardware skills that
-    can hang): a state that overruns ends with ``timeout`` (see :mod:`skillcompose.ticking`).
+    can hang): a state that overruns ends with ``timeout`` (see :mod:`skillcompose.executor`).
     """
 
     skill: str
@@ -65,15 +65,12 @@ class State:
 
 @dataclass(frozen=True)
 class Source:
-    """Where an FSA came from, in plain data: the file's path and the positions of its keys
-    (errors point at lines), its text (a writer that keeps the file's comments and layout
-    reads it again), and the states renamed since (old name -> new), so that such a writer
-    tells a renamed state from a new one."""
+    """Where an FSA came from, in plain data: the file's path and the positions of its keys,
+    so that errors point at lines. A file format's reader may hand a subclass that also
+    keeps what its writer needs (:class:`skillcompose.fsafile.FileOrigin`)."""
 
     path: str | None
     positions: Mapping[tuple[str, ...], tuple[int, int]] = field(default_factory=dict)
-    text: str | None = None
-    renames: Mapping[str, str] = field(default_factory=dict)
 
     def where(self, *keys: str) -> tuple[int | None, int | None]:
         """1-based (line, column) of the deepest known key on the path ``keys``."""
@@ -82,6 +79,10 @@ class Source:
             if pos is not None:
                 return pos
         return None, None
+
+    def renamed(self, old: str, new: str) -> Source:
+        """This source once state ``old`` is called ``new`` (a writer's handle notes it)."""
+        return self
 
 
 @dataclass(frozen=True)
@@ -125,22 +126,22 @@ class FSA:
         self, message: str, state: str | None = None, key: str | None = None,
         fix: str | None = None, at: tuple[str, ...] = (),
     ) -> Problem:
-        line = col = None
-        if self.source is not None:
-            line, col = self.source.where(*at)
-        return Problem(message, state=state, key=key, fix=fix, line=line, column=col)
+        return self._at(Problem(message, state=state, key=key, fix=fix), *at)
+
+    def _at(self, problem: Problem, *keys: str) -> Problem:
+        """``problem`` placed at the file position of the key path ``keys``, if known."""
+        if self.source is None:
+            return problem
+        line, col = self.source.where(*keys)
+        return dataclasses.replace(problem, line=line, column=col)
 
     # -- validation ------------------------------------------------------------------------
     def structure_problems(self) -> list[Problem]:
         """Problems visible without knowing the skills."""
         out: list[Problem] = []
-        if not isinstance(self.step_limit, int) or isinstance(self.step_limit, bool) or \
-                not 1 <= self.step_limit <= MAX_STEP_LIMIT:
-            out.append(self._problem(
-                f"step_limit must be a positive whole number, got {self.step_limit!r} "
-                f"(at most {MAX_STEP_LIMIT})",
-                fix="set `step_limit: 20` (the paper's value)", at=("step_limit",),
-            ))
+        problem = step_limit_problem(self.step_limit)
+        if problem is not None:
+            out.append(self._at(problem, "step_limit"))
         if not self.terminals:
             out.append(self._problem(
                 "no terminal outcomes", fix="set `terminals: [success, failure]`",
@@ -178,16 +179,9 @@ class FSA:
                     f"a state cannot be named {sname!r}: that is a terminal outcome",
                     state=sname, fix="rename the state", at=("states", sname),
                 ))
-            limit = st.time_limit
-            if limit is not None and (
-                isinstance(limit, bool) or not isinstance(limit, (int, float))
-                or not math.isfinite(limit) or limit <= 0
-            ):
-                out.append(self._problem(
-                    f"time_limit must be a positive number of seconds, got {limit!r}",
-                    state=sname, key="time_limit", fix="for example `time_limit: 2.0`",
-                    at=("states", sname, "time_limit"),
-                ))
+            problem = None if st.time_limit is None else time_limit_problem(st.time_limit, sname)
+            if problem is not None:
+                out.append(self._at(problem, "states", sname, "time_limit"))
             for outcome, target in st.transitions.items():
                 if target not in self.states and target not in self.terminals:
                     out.append(self._problem(
@@ -229,15 +223,8 @@ class FSA:
                         fix=f"remove it or rename it to one of {list(spec.outcomes)}",
                         at=(*base, "transitions", outcome),
                     ))
-            for pname, value in st.params.items():
-                try:
-                    spec.param(pname).check(value)
-                except ParamError as exc:
-                    msg = str(exc)
-                    out.append(self._problem(
-                        f"skill {spec.name}: {msg}", state=sname, key=pname,
-                        at=(*base, "params", pname),
-                    ))
+            _, problems = param_problems(spec.name, spec.params, st.params, sname)
+            out.extend(self._at(p, *base, "params", p.key or "") for p in problems)
         return out
 
     def validate(self, registry: Registry) -> FSA:
@@ -268,6 +255,33 @@ class FSA:
     def unreachable(self) -> list[str]:
         reach = set(self.reachable())
         return [s for s in self.states if s not in reach]
+
+    def _repr_svg_(self) -> str:
+        """In a notebook: the FSA's drawing (see :func:`skillcompose.draw.to_svg`)."""
+        from .draw import to_svg
+
+        return to_svg(self)
+
+    def trap_states(self) -> list[str]:
+        """States reachable from the start from which no terminal outcome can be reached: a
+        run that enters one ends in timeout (breadth-first order). The same as
+        :func:`skillcompose.graph.trap_states`, without networkx, for ``validate``."""
+        predecessors: dict[str, list[str]] = {s: [] for s in self.states}
+        ending = []
+        for name, st in self.states.items():
+            for target in st.transitions.values():
+                if target in self.states:
+                    predecessors[target].append(name)
+                elif target in self.terminals:
+                    ending.append(name)
+        can_end = set(ending)
+        queue = deque(ending)
+        while queue:
+            for p in predecessors[queue.popleft()]:
+                if p not in can_end:
+                    can_end.add(p)
+                    queue.append(p)
+        return [s for s in self.reachable() if s not in can_end]
 
     def pruned(self) -> FSA:
         """This FSA without the states the start cannot reach."""
@@ -307,14 +321,9 @@ class FSA:
         for k, st in self.states.items():
             tr = {o: (new if t == old else t) for o, t in st.transitions.items()}
             states[new if k == old else k] = dataclasses.replace(st, transitions=tr)
-        source = self.source
-        if source is not None:
-            renames = {k: (new if v == old else v) for k, v in source.renames.items()}
-            if old not in source.renames.values():
-                renames[old] = new
-            source = dataclasses.replace(source, renames=renames)
         return self.replace(
-            states=states, start=new if self.start == old else self.start, source=source
+            states=states, start=new if self.start == old else self.start,
+            source=self.source and self.source.renamed(old, new),
         )
 
     def _state(self, name: str) -> State:
@@ -343,6 +352,15 @@ class FSA:
             tr = {o: (nxt if o == "success" else on_other) for o in outs}
             states[labels[i]] = State(s, {}, tr)
         return cls(states, labels[0], step_limit=step_limit, name=name)
+
+
+def step_limit_problem(value: Any) -> Problem | None:
+    """None when ``value`` is a valid step limit (a whole number in [1, MAX_STEP_LIMIT])."""
+    if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= MAX_STEP_LIMIT:
+        return None
+    return Problem(f"step_limit must be a positive whole number, got {clip(repr(value), 60)} "
+                   f"(at most {MAX_STEP_LIMIT})", key="step_limit",
+                   fix="for example `step_limit: 20`")
 
 
 def _fix_target(target: str, states: list[str], terminals: tuple[str, ...]) -> str:

@@ -38,11 +38,14 @@ with its file, line and column, the state and key, what was expected and the fix
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import io
 import math
 import os
 import re
 from collections.abc import Collection, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -60,10 +63,12 @@ from ruamel.yaml.events import (
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
+from ruamel.yaml.representer import RoundTripRepresenter
 
-from .errors import FSAFileError, FSAValidationError, Problem
+from .errors import FSAFileError, FSAValidationError, Problem, clip
 from .files import atomic_write
-from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, MAX_STEP_LIMIT, Source, State
+from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step_limit_problem
+from .params import time_limit_problem
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -164,8 +169,13 @@ class _Refused(Exception):
         self.problem = problem
 
 
+def _at(mark: Any, problem: Problem) -> Problem:
+    """``problem`` at the 1-based position of the parser's 0-based ``mark``."""
+    return dataclasses.replace(problem, line=mark.line + 1, column=mark.column + 1)
+
+
 def _mark_problem(mark: Any, message: str, fix: str | None = None) -> Problem:
-    return Problem(message, fix=fix, line=mark.line + 1, column=mark.column + 1)
+    return _at(mark, Problem(message, fix=fix))
 
 
 class _GuardedParser(RoundTripParser):
@@ -292,7 +302,7 @@ class _BadScalar(ValueError):
 def _to_int(text: str) -> int:
     fix = "write a whole number such as 3, or quote it to keep it as text"
     if not _INT_RE.fullmatch(text):
-        raise _BadScalar(f"{_clip(text)!r} is not a whole number", fix)
+        raise _BadScalar(f"{clip(text)!r} is not a whole number", fix)
     s = text.replace("_", "")
     sign = -1 if s[0] == "-" else 1
     body = s.lstrip("+-")
@@ -302,7 +312,7 @@ def _to_int(text: str) -> int:
     value = None if len(digits) > 64 else sign * int(digits, base)
     if value is None or not _INT_MIN <= value <= _INT_MAX:
         raise _BadScalar(
-            f"whole number {_clip(text)} is out of range [-2**63, 2**63 - 1]",
+            f"whole number {clip(text)} is out of range [-2**63, 2**63 - 1]",
             "use a smaller number, or quote it to keep it as text",
         )
     return value
@@ -315,11 +325,11 @@ def _to_float(text: str) -> float:
         return math.nan
     fix = "write a number such as 0.5, 1e-3, .inf or .nan, or quote it to keep it as text"
     if not _FLOAT_RE.fullmatch(text):
-        raise _BadScalar(f"{_clip(text)!r} is not a number", fix)
+        raise _BadScalar(f"{clip(text)!r} is not a number", fix)
     value = float(text.replace("_", ""))
     if math.isinf(value):
         raise _BadScalar(
-            f"number {_clip(text)} is too large (beyond ±1.8e308)",
+            f"number {clip(text)} is too large (beyond ±1.8e308)",
             "write .inf or -.inf for infinity, or a smaller number",
         )
     return value
@@ -371,10 +381,6 @@ def _check_directives(text: str) -> None:
             ))
 
 
-def _clip(text: str, n: int = 40) -> str:
-    return text if len(text) <= n else text[:n - 3] + "..."
-
-
 class _Reader:
     def __init__(self, text: str, path: str | None) -> None:
         self.text = text
@@ -385,13 +391,16 @@ class _Reader:
 
     # -- helpers ---------------------------------------------------------------------------
     def fail(
-        self, node: Node | None, message: str, *, state: str | None = None,
+        self, node: Node, message: str, *, state: str | None = None,
         key: str | None = None, fix: str | None = None,
     ) -> None:
-        line = col = None
-        if node is not None and node.start_mark is not None:
-            line, col = node.start_mark.line + 1, node.start_mark.column + 1
-        self.problems.append(Problem(message, state, key, fix, line, col))
+        self.report(node, Problem(message, state, key, fix))
+
+    def report(self, node: Node, problem: Problem | None) -> bool:
+        """Note ``problem`` (if any) at ``node``'s position; True when there was one."""
+        if problem is not None:
+            self.problems.append(_at(node.start_mark, problem))
+        return problem is not None
 
     def raise_if_problems(self) -> None:
         if self.problems:
@@ -427,7 +436,7 @@ class _Reader:
                 self.fail(k, f"{label}: keys must be plain names, got {_node_kind(k)}",
                           fix="write the key as text")
                 continue
-            stack.append((v, prefix + _clip(str(k.value), 30)))
+            stack.append((v, prefix + clip(str(k.value), 30)))
             if not self.convert(k, label, constructor):
                 continue
             value = self.values[id(k)]
@@ -435,7 +444,7 @@ class _Reader:
             nan = isinstance(value, float) and math.isnan(value)
             first = by_text.get(text) or (None if nan else by_value.get(value))
             if first is not None:
-                self.fail(k, f"{label}: key {_clip(text)!r} appears twice (first on line "
+                self.fail(k, f"{label}: key {clip(text)!r} appears twice (first on line "
                           f"{first.start_mark.line + 1})", key=text, fix="keep one of them")
                 continue
             by_text[text] = k
@@ -451,12 +460,12 @@ class _Reader:
         try:
             if name == "null":
                 if v not in _NULLS:
-                    raise _BadScalar(f"{_clip(v)!r} is not empty (!!null)",
+                    raise _BadScalar(f"{clip(v)!r} is not empty (!!null)",
                                      "remove the !!null tag or the value")
                 value: Any = None
             elif name == "bool":
                 if v not in _BOOLS:
-                    raise _BadScalar(f"{_clip(v)!r} is not true or false",
+                    raise _BadScalar(f"{clip(v)!r} is not true or false",
                                      "write true or false")
                 value = _BOOLS[v]
             elif name == "int":
@@ -467,7 +476,7 @@ class _Reader:
                 try:
                     constructor.construct_yaml_timestamp(node)
                 except Exception:
-                    raise _BadScalar(f"{_clip(v)!r} is not a valid date",
+                    raise _BadScalar(f"{clip(v)!r} is not a valid date",
                                      "quote it to keep it as text") from None
                 value = v
             elif name in ("value", "yaml"):  # `=` and friends: text
@@ -506,19 +515,9 @@ class _Reader:
                       f"got {_node_kind(node)}", state=state, fix=fix)
             return None
         out: dict[str, tuple[Node, Node]] = {}
-        for k, v in node.value:
-            if not isinstance(k, ScalarNode):
-                self.fail(k, f"{what}: keys must be plain names", state=state)
-                continue
+        for k, v in node.value:  # plain, distinct keys: check_keys saw to that
             key = str(self.scalar(k)) if k.value != "" else ""
-            if key in out:
-                first = out[key][0].start_mark.line + 1
-                self.fail(k, f"{what}: key {key!r} appears twice (first on line {first})",
-                          state=state, key=key, fix="keep one of them")
-                continue
             if allowed is not None and key not in allowed:
-                import difflib
-
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f"did you mean {close[0]!r}?" if close else \
                     f"allowed keys are {', '.join(allowed)}"
@@ -592,7 +591,7 @@ class _Reader:
             mark = parser.last_mark if parser is not None else None
             line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
             raise _Refused(Problem(
-                f"not valid YAML: {type(exc).__name__}: {_clip(str(exc), 80)}",
+                f"not valid YAML: {type(exc).__name__}: {clip(str(exc), 80)}",
                 fix="check the YAML near this line", line=line, column=col,
             )) from None
         self.problems.extend(parser.problems)
@@ -629,11 +628,7 @@ class _Reader:
         if "step_limit" in top:
             node = top["step_limit"][1]
             step_limit = self.scalar(node)
-            if not isinstance(step_limit, int) or isinstance(step_limit, bool) or \
-                    not 1 <= step_limit <= MAX_STEP_LIMIT:
-                self.fail(node, f"step_limit must be a positive whole number, got "
-                          f"{_clip(repr(step_limit))} (at most {MAX_STEP_LIMIT})",
-                          key="step_limit", fix="for example `step_limit: 20`")
+            if self.report(node, step_limit_problem(step_limit)):
                 step_limit = DEFAULT_STEP_LIMIT
         terminals: tuple[str, ...] = DEFAULT_TERMINALS
         if "terminals" in top:
@@ -656,7 +651,7 @@ class _Reader:
         if "states" in top:
             states = self.read_states(*top["states"])
         self.raise_if_problems()
-        source = Source(self.path, dict(self.positions), self.text)
+        source = FileOrigin(self.path, dict(self.positions), self.text, root=root)
         try:
             return FSA(states, start, terminals, step_limit, name, meta, source)
         except FSAValidationError as exc:
@@ -705,26 +700,23 @@ class _Reader:
         if "params" in fields:
             pnode = fields["params"][1]
             self.mark(("states", sname, "params"), fields["params"][0])
-            if isinstance(pnode, ScalarNode) and str(pnode.tag).endswith(":null"):
-                pass
-            else:
-                pmap = self.mapping(pnode, f"state {sname} params", None, state=sname,
-                                    fix="write `params: {name: value}`")
-                for pname, (_, pv) in (pmap or {}).items():
-                    self.mark(("states", sname, "params", pname), pv)
-                    if isinstance(pv, SequenceNode) and all(
-                        isinstance(item, ScalarNode) for item in pv.value
-                    ):  # a vector parameter: one flat list of numbers
-                        params[pname] = tuple(self.scalar(item) for item in pv.value)
-                        continue
-                    if not isinstance(pv, ScalarNode):
-                        self.fail(pv, f"parameter {pname!r} must be a single value "
-                                  f"(number, true/false or text) or, for a vector "
-                                  f"parameter, a flat list of numbers; got {_node_kind(pv)}",
-                                  state=sname, key=pname)
-                        ok = False
-                        continue
+            empty = isinstance(pnode, ScalarNode) and str(pnode.tag).endswith(":null")
+            pmap = None if empty else self.mapping(
+                pnode, f"state {sname} params", None, state=sname,
+                fix="write `params: {name: value}`")
+            for pname, (_, pv) in (pmap or {}).items():
+                self.mark(("states", sname, "params", pname), pv)
+                if isinstance(pv, SequenceNode) and all(
+                    isinstance(item, ScalarNode) for item in pv.value
+                ):  # a vector parameter: one flat list of numbers
+                    params[pname] = tuple(self.scalar(item) for item in pv.value)
+                elif isinstance(pv, ScalarNode):
                     params[pname] = self.scalar(pv)
+                else:
+                    self.fail(pv, f"parameter {pname!r} must be a single value (number, "
+                              "true/false or text) or, for a vector parameter, a flat list "
+                              f"of numbers; got {_node_kind(pv)}", state=sname, key=pname)
+                    ok = False
         transitions: dict[str, str] = {}
         if "transitions" in fields:
             self.mark(("states", sname, "transitions"), fields["transitions"][0])
@@ -746,11 +738,7 @@ class _Reader:
             tnode = fields["time_limit"][1]
             self.mark(("states", sname, "time_limit"), tnode)
             value = self.scalar(tnode)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                    not math.isfinite(value) or value <= 0:
-                self.fail(tnode, f"time_limit must be a positive number of seconds, got "
-                          f"{value!r}", state=sname, key="time_limit",
-                          fix="for example `time_limit: 2.0`")
+            if self.report(tnode, time_limit_problem(value, sname)):
                 ok = False
             else:
                 time_limit = float(value)
@@ -774,10 +762,10 @@ def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None 
 
     With a ``registry``, parameters of new states carry their unit and range as comments.
     """
-    source = fsa.source
-    doc = _document(source.text) if source is not None and source.text is not None else None
-    if isinstance(doc, CommentedMap) and source is not None:
-        _sync_document(doc, fsa, registry, source.renames)
+    origin = fsa.source
+    doc = origin.document() if isinstance(origin, FileOrigin) else None
+    if isinstance(doc, CommentedMap) and isinstance(origin, FileOrigin):
+        _sync_document(doc, fsa, registry, origin.renames)
     else:
         doc = _new_document(fsa, registry, header)
     return _dump(doc)
@@ -788,8 +776,7 @@ def in_layout_of(fsa: FSA, seed: FSA, keep: Collection[str], header: str) -> FSA
     named in ``keep`` keep their text and comments there, the others are written afresh,
     and the file starts with the comment ``header``. ``fsa`` itself if ``seed`` has no file.
     """
-    source = seed.source
-    doc = _document(source.text) if source is not None and source.text is not None else None
+    doc = seed.source.document() if isinstance(seed.source, FileOrigin) else None
     if not isinstance(doc, CommentedMap):
         return fsa
     kept = doc.get("states")
@@ -797,12 +784,34 @@ def in_layout_of(fsa: FSA, seed: FSA, keep: Collection[str], header: str) -> FSA
         for gone in [k for k in kept if k not in keep]:
             del kept[gone]
     doc.yaml_set_start_comment(header)
-    return fsa.replace(source=Source(None, {}, _dump(doc)))
+    return fsa.replace(source=FileOrigin(None, {}, _dump(doc)))
 
 
-def _document(text: str) -> Any:
-    """The round-trip document (comments, order, formatting) of a text this module read."""
-    return YAML(typ="rt").load(text)
+@dataclass(frozen=True)
+class FileOrigin(Source):
+    """The file layer's handle on the text an FSA was read from, owned by the writer: the
+    text, the states renamed since (old -> new, so that a save tells a renamed state from a
+    new one) and the node tree of the reader's one parse, from which each save builds the
+    round-trip document (comments, order, formatting) without parsing again."""
+
+    text: str = ""
+    renames: Mapping[str, str] = field(default_factory=dict)
+    root: Node | None = field(default=None, compare=False, repr=False)
+
+    def renamed(self, old: str, new: str) -> FileOrigin:
+        renames = {k: (new if v == old else v) for k, v in self.renames.items()}
+        if old not in self.renames.values():
+            renames[old] = new
+        return dataclasses.replace(self, renames=renames)
+
+    def document(self) -> Any:
+        """A fresh round-trip document of the text (the reader's nodes, else a parse)."""
+        yaml = YAML(typ="rt")
+        return yaml.load(self.text) if self.root is None else \
+            yaml.constructor.construct_document(self.root)
+
+    def __reduce__(self) -> tuple[Any, ...]:  # a copy sent elsewhere parses the text again
+        return FileOrigin, (self.path, self.positions, self.text, self.renames)
 
 
 def _dump(doc: Any) -> str:
@@ -830,11 +839,15 @@ def _yaml_out() -> YAML:
 
 
 def _py(value: Any) -> Any:
-    """Plain Python values for the emitter (numpy scalars become floats/ints)."""
+    """Plain Python values: of an FSA for the emitter (numpy scalars become floats/ints), of
+    a document for comparing (the YAML library's scalars become bool/int/float/str)."""
     if isinstance(value, Mapping):
         return {str(k): _py(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_py(v) for v in value]
+    for kind in (bool, int, float, str):
+        if isinstance(value, kind):
+            return kind(value)
     if hasattr(value, "item") and callable(value.item):  # numpy scalar
         return value.item()
     return value
@@ -857,41 +870,25 @@ def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | N
 
 
 def _state_map(st: State, registry: Registry | None) -> CommentedMap:
+    """A new state's mapping, its parameters' units and ranges and its time limit's unit as
+    comments."""
     m = CommentedMap()
-    m["skill"] = st.skill
-    if st.params:
-        pm = CommentedMap()
-        for k, v in st.params.items():
-            value = _py(v)
-            pm[k] = _flow_list(value) if isinstance(value, list) else value
-            c = _param_comment(registry, st.skill, k)
-            if c:
-                pm.yaml_add_eol_comment(c, k)
-        m["params"] = pm
-    tm = CommentedMap()
-    for o, t in st.transitions.items():
-        tm[o] = t
-    m["transitions"] = tm
+    _sync_state(m, st)
+    for k in st.params:
+        c = _param_comment(registry, st.skill, k)
+        if c:
+            m["params"].yaml_add_eol_comment(c, k)
     if st.time_limit is not None:
-        m["time_limit"] = st.time_limit
         m.yaml_add_eol_comment("s: a longer state ends with `timeout`", "time_limit")
     return m
 
 
 def _new_document(fsa: FSA, registry: Registry | None, header: str | None) -> CommentedMap:
-    doc = CommentedMap()
-    doc["format"] = FORMAT_VERSION
-    if fsa.name:
-        doc["name"] = fsa.name
-    doc["start"] = fsa.start
-    doc["step_limit"] = fsa.step_limit
-    doc["terminals"] = _flow_list(list(fsa.terminals))
-    states = CommentedMap()
-    for sname, st in fsa.states.items():
-        states[sname] = _state_map(st, registry)
-    doc["states"] = states
+    # the keys a new file always has, in order, for the sync to fill; meta as plain data
+    doc = CommentedMap((k, None) for k in TOP_LEVEL_KEYS[:5] if k != "name" or fsa.name)
     if fsa.meta:
-        doc["meta"] = _py(fsa.meta)
+        doc["states"], doc["meta"] = CommentedMap(), _py(fsa.meta)
+    _sync_document(doc, fsa, registry, {})
     text = _HEADER if header is None else header
     if text:
         doc.yaml_set_start_comment(text)
@@ -902,7 +899,7 @@ def _new_document(fsa: FSA, registry: Registry | None, header: str | None) -> Co
 def _set(m: CommentedMap, key: str, value: Any) -> None:
     """Assign only when the value changed, so untouched values keep their formatting."""
     value = _py(value)
-    if key in m and _equal(_plain(m[key]), value) and _emits_exactly(m[key]):
+    if key in m and _equal(_py(m[key]), value) and _emits_exactly(m[key]):
         return
     if isinstance(value, list):  # terminals, vector parameters: one line (or a few)
         value = _flow_list(value)
@@ -917,13 +914,11 @@ def _emits_exactly(v: Any) -> bool:
     """
     if not isinstance(v, float) or type(v) is float:
         return True
-    buf = io.StringIO()
-    _yaml_out().dump({"v": v}, buf)
     try:
-        back = YAML(typ="safe").load(buf.getvalue())["v"]
+        back = _to_float(RoundTripRepresenter().represent_scalar_float(v).value)
     except Exception:
         return False
-    return bool(back == float(v)) or (math.isnan(back) and math.isnan(float(v)))
+    return back == float(v) or (math.isnan(back) and math.isnan(float(v)))
 
 
 def _equal(a: Any, b: Any) -> bool:
@@ -932,22 +927,6 @@ def _equal(a: Any, b: Any) -> bool:
     return bool(a == b and type(a) is type(b)) or (
         isinstance(a, (dict, list)) and a == b
     )
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, Mapping):
-        return {str(k): _plain(x) for k, x in v.items()}
-    if isinstance(v, list):
-        return [_plain(x) for x in v]
-    if isinstance(v, bool):
-        return bool(v)
-    if isinstance(v, int):
-        return int(v)
-    if isinstance(v, float):
-        return float(v)
-    if isinstance(v, str):
-        return str(v)
-    return v
 
 
 def _rename_key(m: CommentedMap, old: str, new: str) -> None:
@@ -990,27 +969,31 @@ def _sync_document(
         del states[gone]
     for sname, st in fsa.states.items():
         cur = states.get(sname)
-        if not isinstance(cur, CommentedMap):
+        if isinstance(cur, CommentedMap):
+            _sync_state(cur, st)
+        else:
             states[sname] = _state_map(st, registry)
-            continue
-        _set(cur, "skill", st.skill)
-        if st.params or "params" in cur:
-            pm = cur.get("params")
-            if not isinstance(pm, CommentedMap):
-                pm = CommentedMap()
-                cur.insert(list(cur.keys()).index("skill") + 1 if "skill" in cur else 0,
-                           "params", pm)
-            _sync_map(pm, st.params)
-        tm = cur.get("transitions")
-        if not isinstance(tm, CommentedMap):
-            tm = CommentedMap()
-            cur["transitions"] = tm
-        _sync_map(tm, st.transitions)
-        if st.time_limit is not None:
-            _set(cur, "time_limit", st.time_limit)
-        elif "time_limit" in cur:
-            del cur["time_limit"]
     if fsa.meta or "meta" in doc:
-        if not isinstance(doc.get("meta"), CommentedMap):
+        if not isinstance(doc.get("meta"), dict):
             doc["meta"] = CommentedMap()
         _sync_map(doc["meta"], fsa.meta)
+
+
+def _sync_state(cur: CommentedMap, st: State) -> None:
+    _set(cur, "skill", st.skill)
+    if st.params or "params" in cur:
+        pm = cur.get("params")
+        if not isinstance(pm, CommentedMap):
+            pm = CommentedMap()
+            cur.insert(list(cur.keys()).index("skill") + 1 if "skill" in cur else 0,
+                       "params", pm)
+        _sync_map(pm, st.params)
+    tm = cur.get("transitions")
+    if not isinstance(tm, CommentedMap):
+        tm = CommentedMap()
+        cur["transitions"] = tm
+    _sync_map(tm, st.transitions)
+    if st.time_limit is not None:
+        _set(cur, "time_limit", st.time_limit)
+    elif "time_limit" in cur:
+        del cur["time_limit"]

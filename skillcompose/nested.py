@@ -28,7 +28,7 @@ class FSASkill(Skill):
     """A skill whose implementation is an FSA: long-running, ticked state by state."""
 
     __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
-    kind = "fsa"
+    long_running = True
 
     def __init__(
         self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str
@@ -38,10 +38,6 @@ class FSASkill(Skill):
         self.registry = registry
         self.timeout_outcome = timeout_outcome
         self._compiled: dict[str, CompiledFSA] = {}
-
-    @property
-    def long_running(self) -> bool:
-        return True
 
     def compiled(self, backend: str | None = None) -> CompiledFSA:
         """The nested FSA compiled for ``backend`` (once per backend)."""
@@ -113,21 +109,13 @@ def fsa_skill(
         on_timeout = "failure" if "failure" in outcomes else TIMEOUT
     if on_timeout not in outcomes:
         outcomes.append(on_timeout)
-    reads: set[str] = set()
-    writes: set[str] = set()
-    key_types: dict[str, Any] = {}
-    for st in fsa.states.values():
-        spec = registry.spec(st.skill)
-        reads |= spec.reads
-        writes |= spec.writes
-        key_types.update(spec.key_types)
+    specs = [registry.spec(st.skill) for st in fsa.states.values()]
     spec = SkillSpec(
         name=skill_name,
         outcomes=tuple(outcomes),
-        params=(),
-        reads=frozenset(reads),
-        writes=frozenset(writes),
-        key_types=key_types,
+        reads=frozenset().union(*(s.reads for s in specs)),
+        writes=frozenset().union(*(s.writes for s in specs)),
+        key_types={k: t for s in specs for k, t in s.key_types.items()},
         doc=f"FSA {skill_name} ({len(fsa.states)} states, start {fsa.start})",
     )
     return FSASkill(spec, fsa, registry, on_timeout)

@@ -18,14 +18,17 @@ range: ``n`` genes of the genome, one list in a file.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args, get_origin
 
-from .errors import ParamError
+from .errors import ParamError, Problem, clip
 
-__all__ = ["Choice", "Param", "ParamKind", "ParamSpec", "Scale"]
+__all__ = [
+    "Choice", "Param", "ParamKind", "ParamSpec", "Scale", "param_problems", "time_limit_problem",
+]
 
 ParamKind = Literal["float", "int", "bool", "choice"]
 Scale = Literal["linear", "log"]
@@ -137,7 +140,7 @@ class ParamSpec:
         assert n is not None and self.low is not None and self.high is not None
         head = f"{prefix}parameter {self.name!r} is not valid; expected {self.describe_range()}"
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
-            raise ParamError(f"{head}, got {_short(value)}; write a list such as [0.1, -0.5, ...]")
+            raise ParamError(f"{head}, got {_repr(value)}; write a list such as [0.1, -0.5, ...]")
         if len(value) != n:
             raise ParamError(
                 f"{head}, got a list of {len(value)}; give exactly {n} numbers (the skill "
@@ -147,7 +150,7 @@ class ParamSpec:
         for i, v in enumerate(value):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or \
                     not math.isfinite(float(v)):
-                raise ParamError(f"{head}; item {i} = {_short(v)} is not a finite number")
+                raise ParamError(f"{head}; item {i} = {_repr(v)} is not a finite number")
             if not self.low <= v <= self.high:
                 raise ParamError(
                     f"{head}; item {i} = {v!r} is outside; set it between {self.low:g} and "
@@ -217,12 +220,50 @@ class ParamSpec:
         return min(max(u, 0.0), 1.0)
 
 
+def param_problems(
+    skill: str, specs: Sequence[ParamSpec], given: Mapping[str, Any], state: str | None = None
+) -> tuple[dict[str, Any], list[Problem]]:
+    """The one check of a state's parameters, for the model, the file reader and the genome.
+
+    Returns the values (the defaults overlaid with each valid value of ``given``, as its
+    parameter's type) and a :class:`~skillcompose.errors.Problem` (``key``: the parameter)
+    per unknown name or bad value; callers add where it is (a file's line, a state).
+    """
+    values = {p.name: p.default for p in specs}
+    by_name = {p.name: p for p in specs}
+    problems: list[Problem] = []
+    for name, value in given.items():
+        spec = by_name.get(name)
+        if spec is None:
+            problems.append(Problem(
+                f"skill {skill} has no parameter {name!r}; its parameters are "
+                f"{list(by_name) or 'none'}", state, name,
+            ))
+            continue
+        try:
+            values[name] = spec.check(value)
+        except ParamError as exc:
+            problems.append(Problem(f"skill {skill}: {exc}", state, name))
+    return values, problems
+
+
+def time_limit_problem(
+    value: Any, state: str | None = None, what: str = "time_limit",
+    fix: str = "for example `time_limit: 2.0`",
+) -> Problem | None:
+    """The one check of a state's wall-clock limit [s] (a positive finite number): None when
+    ``value`` passes, else the problem, ``what`` naming the limit as the caller knows it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value) or value <= 0:
+        return Problem(f"{what} must be a positive number of seconds, got {value!r}", state,
+                       "time_limit", fix)
+    return None
+
+
 def make_param_spec(
     name: str, base_type: Any, decl: Param | Choice | None, default: Any, owner: str
 ) -> ParamSpec:
     """Build a :class:`ParamSpec` from a signature entry; raise ``ParamError`` if unusable."""
-    from typing import get_args, get_origin
-
     where = f"skill {owner}, parameter {name!r}"
     if isinstance(decl, Choice) or get_origin(base_type) is Literal:
         options: Sequence[Any] = decl.options if isinstance(decl, Choice) else get_args(base_type)
@@ -267,8 +308,7 @@ def make_param_spec(
         )
     if default is _MISSING:
         raise ParamError(f"{where}: needs a default value (evolution and files may omit it)")
-    spec = ParamSpec(**{**spec.__dict__, "default": spec.check(default, f"skill {owner}")})
-    return spec
+    return dataclasses.replace(spec, default=spec.check(default, f"skill {owner}"))
 
 
 def _check_range(decl: Param, where: str) -> None:
@@ -280,9 +320,8 @@ def _check_range(decl: Param, where: str) -> None:
         raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
 
 
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+def _repr(value: Any) -> str:
+    return clip(repr(value), 60)
 
 
 class _Missing:

@@ -18,13 +18,14 @@ SHOW_AFTER_S = 2.0
 REDRAW_S = 0.1  # at most this often
 
 
-def progress_bar(total: int, unit: str, desc: str = "", file: TextIO | None = None) -> Any:
+def progress_bar(total: int, unit: str, desc: str = "", file: TextIO | None = None, *,
+                 disable: bool = False) -> Any:
     """A tqdm bar of ``total`` ``unit`` s on ``file`` (default standard error); it draws
-    itself only on a terminal and after :data:`SHOW_AFTER_S` seconds. Use it as a context
-    manager and call ``update(n)``."""
+    itself only on a terminal and after :data:`SHOW_AFTER_S` seconds, never when
+    ``disable`` (``-q``). Use it as a context manager and call ``update(n)``."""
     stream = file if file is not None else sys.stderr
     return tqdm(
         total=total, unit=unit, desc=desc or None, file=stream, delay=SHOW_AFTER_S,
-        mininterval=REDRAW_S, disable=not getattr(stream, "isatty", lambda: False)(),
+        mininterval=REDRAW_S, disable=disable or not getattr(stream, "isatty", lambda: False)(),
         leave=False, dynamic_ncols=True,
     )

@@ -34,23 +34,33 @@ import itertools
 import math
 import multiprocessing
 import os
-import sys
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from .arguments import MAX_TRIALS, MAX_WORKERS, module_or_file, output_file, seed, setting, whole
-from .cli import check_backend
-from .errors import SkillcomposeError
-from .executor import compile_fsa
+from .arguments import (
+    MAX_TRIALS,
+    MAX_WORKERS,
+    module_or_file,
+    note,
+    output_file,
+    seed,
+    setting,
+    whole,
+)
+from .errors import SkillcomposeError, clip
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
-from .fsafile import load_fsa
-from .progress import progress_bar
-from .task import Task, TaskRef, load_task, parse_settings
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .task import Task, TaskRef
+
+# numpy and the runtime (executor, files, tasks) are imported where they are used, so that
+# registering the `robustness` subcommand (which `skillcompose --help` does) stays cheap.
 
 __all__ = [
     "MAX_SWEEP_POINTS",
@@ -124,6 +134,7 @@ def robustness_sweep(
     settings: Mapping[str, Any] | None = None,
     backend: str | None = None,
     step_limit: int | None = None,
+    progress: bool = True,
 ) -> list[SweepRow]:
     """Run ``fsa`` ``reps`` times at each value of the task setting ``setting``.
 
@@ -133,18 +144,22 @@ def robustness_sweep(
     - ``p_fail``: the values of ``setting`` to sweep (the failure probability by default).
     - ``settings``: the task's other settings, kept fixed.
     - ``workers``: processes; the rows are the same for any number.
+    - ``progress``: a progress bar on a terminal (see :func:`~skillcompose.progress.progress_bar`).
 
     Returns one :class:`SweepRow` per value, in the order given.
     """
+    import numpy as np
+
+    from .executor import compile_fsa
+    from .fsafile import load_fsa
+    from .progress import progress_bar
+
     values = [_check_value(v, setting) for v in p_fail]
     if not values:
         raise RobustnessError(f"no values of {setting} to sweep; give at least one")
-    if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
-        raise RobustnessError(f"reps={reps!r} must be a positive whole number, e.g. 5000")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise RobustnessError(f"workers={workers!r} must be a positive whole number")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise RobustnessError(f"seed={seed!r} must be a whole number >= 0")
+    for what, count, low in (("reps", reps, 1), ("workers", workers, 1), ("seed", seed, 0)):
+        if isinstance(count, bool) or not isinstance(count, int) or count < low:
+            raise RobustnessError(f"{what}={count!r} must be a whole number >= {low}")
     ref = _task_ref(task, settings)
     machine = fsa if isinstance(fsa, FSA) else load_fsa(fsa)
     if step_limit is not None:
@@ -160,7 +175,8 @@ def robustness_sweep(
         for start, stop in _chunks(reps, workers, len(values))
     ]
     parts = []
-    with progress_bar(len(values) * reps, "run", f"sweep of {setting}") as bar:
+    with progress_bar(len(values) * reps, "run", f"sweep of {setting}",
+                      disable=not progress) as bar:
         if workers == 1 or len(jobs) == 1:
             for job in jobs:
                 parts.append(_run_chunk(job))
@@ -179,10 +195,7 @@ def robustness_sweep(
         mine = parts[k * per_value:(k + 1) * per_value]
         fit = np.concatenate([p[0] for p in mine])
         steps = np.concatenate([p[1] for p in mine])
-        counts: dict[str, int] = {}
-        for p in mine:
-            for o, n in p[2].items():
-                counts[o] = counts.get(o, 0) + n
+        counts = sum((p[2] for p in mine), Counter[str]())
         rows.append(SweepRow(
             setting=setting,
             value=v,
@@ -211,15 +224,19 @@ class _Chunk:
     task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
 
 
-def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int]:
+def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
+    import numpy as np
+
+    from .executor import compile_fsa
+
     task = _build(job.ref, job.setting, job.value)
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
         compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
     fit = np.empty(n)
     steps = np.empty(n, dtype=np.int64)
-    counts: dict[str, int] = {}
+    counts = Counter[str]()
     solved = 0
     is_solved = task.solved
     for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n,
@@ -227,12 +244,14 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, dict[str, int], int
         fit[k] = f
         solved += is_solved(f)
         steps[k] = result.steps
-        counts[result.outcome] = counts.get(result.outcome, 0) + 1
+        counts[result.outcome] += 1
     return fit, steps, counts, solved
 
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
     """Split ``reps`` so that the points times their chunks keep ``workers`` busy."""
+    import numpy as np
+
     if workers == 1:
         return [(0, reps)]
     per_point = max(1, min(reps // 500 or 1, math.ceil(4 * workers / points)))
@@ -241,10 +260,14 @@ def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
 
 
 def _build(ref: TaskRef, setting: str, value: float) -> Task:
+    from .task import TaskRef
+
     return TaskRef(ref.module, {**ref.settings, setting: value}).build()
 
 
 def _task_ref(task: str | Task, settings: Mapping[str, Any] | None) -> TaskRef:
+    from .task import Task, TaskRef
+
     if isinstance(task, str):
         return TaskRef(task, dict(settings or {}))
     if isinstance(task, Task):
@@ -261,6 +284,8 @@ def _task_ref(task: str | Task, settings: Mapping[str, Any] | None) -> TaskRef:
 
 
 def _check_value(v: Any, setting: str) -> float:
+    import numpy as np
+
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or \
             not math.isfinite(float(v)):
         raise RobustnessError(f"sweep value {v!r} of {setting} must be a finite number")
@@ -272,10 +297,12 @@ def parse_values(text: str) -> list[float]:
 
     Raises :class:`RobustnessError` with the accepted forms on anything else.
     """
+    import numpy as np
+
     forms = (f"write START:STOP:COUNT (e.g. 0:1:21) or a comma-separated list (e.g. "
              f"0,0.2,0.5) of finite numbers, at most {MAX_SWEEP_POINTS} values")
     text = text.strip()
-    shown = text if len(text) <= 40 else text[:37] + "..."
+    shown = clip(text)
     try:
         if ":" in text:
             parts = text.split(":")
@@ -445,6 +472,9 @@ def _setting_name(text: str) -> str:
 
 
 def cmd_robustness(args: argparse.Namespace) -> int:
+    from .cli import check_backend
+    from .task import load_task, parse_settings
+
     values = args.values if isinstance(args.values, list) else parse_values(args.values)
     settings = parse_settings(args.settings)
     if args.backend:
@@ -456,7 +486,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     rows = robustness_sweep(
         args.file, args.task, values, reps=args.reps, seed=args.seed, workers=args.workers,
         setting=args.setting, settings=settings, backend=args.backend,
-        step_limit=args.step_limit,
+        step_limit=args.step_limit, progress=not getattr(args, "quiet", False),
     )
     print(format_table(rows))
     csv_path = args.csv
@@ -464,8 +494,8 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         csv_path = str(Path(args.output).with_suffix(".csv"))
     if csv_path:
         write_csv(rows, csv_path)
-        print(f"table: {csv_path}", file=sys.stderr)
+        note(args, f"table: {csv_path}")
     if args.output:
         plot_sweep(rows, args.output, title=f"{Path(args.file).name} on {args.task}")
-        print(f"plot: {args.output}", file=sys.stderr)
+        note(args, f"plot: {args.output}")
     return 0

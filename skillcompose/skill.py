@@ -37,7 +37,7 @@ import numpy as np
 from .activation import RUNNING, Starter, driven, start_generator, start_instance
 from .blackboard import Access, Blackboard
 from .errors import ParamError, SkillDefinitionError, UndeclaredOutcomeError
-from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec
+from .params import _MISSING, Choice, Param, ParamSpec, make_param_spec, param_problems
 
 __all__ = [
     "GeneratorSkill",
@@ -84,22 +84,13 @@ class SkillSpec:
         return {p.name: p.default for p in self.params}
 
     def resolve_params(self, given: Mapping[str, Any], where: str = "") -> dict[str, Any]:
-        """Defaults overlaid with ``given``, each checked against its range."""
-        out = self.defaults()
-        where = where or f"skill {self.name}"
-        for k, v in given.items():
-            spec = None
-            for p in self.params:
-                if p.name == k:
-                    spec = p
-                    break
-            if spec is None:
-                raise ParamError(
-                    f"{where}: skill {self.name} has no parameter {k!r}; "
-                    f"its parameters are {list(self.param_names) or 'none'}"
-                )
-            out[k] = spec.check(v, where)
-        return out
+        """Defaults overlaid with ``given``, each checked against its range; raises
+        :class:`ParamError` naming ``where`` (a state, say) and every problem."""
+        values, problems = param_problems(self.name, self.params, given)
+        if problems:
+            raise ParamError((f"{where}: " if where else "") + "; ".join(
+                p.message for p in problems))
+        return values
 
     def access(self) -> Access:
         return Access(self.name, self.reads, self.writes)
@@ -125,9 +116,8 @@ class Skill:
     """
 
     __slots__ = ("backend", "impl", "spec")
-    kind = "function"
-    """``function``, ``instance`` (callable class), ``ticking``, ``generator``, ..."""
-    is_class = False
+    long_running = False
+    """True for skills ticked until they finish (start/tick classes, generators, FSAs)."""
 
     def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         self.spec = spec
@@ -144,10 +134,6 @@ class Skill:
         twin.backend = backend
         return twin
 
-    @property
-    def long_running(self) -> bool:
-        """True for skills ticked until they finish (start/tick classes, generators)."""
-        return False
 
     def starter(self, backend: str | None = None) -> Starter | None:
         """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
@@ -194,8 +180,6 @@ class InstanceSkill(Skill):
     """A class with ``__call__``: one instance, made on first use, runs every activation."""
 
     __slots__ = ("_instance",)
-    kind = "instance"
-    is_class = True
 
     def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "default") -> None:
         super().__init__(spec, impl, backend=backend)
@@ -226,12 +210,7 @@ class TickingSkill(Skill):
     """A class with ``start`` / ``tick`` / ``cancel``: a fresh instance per activation."""
 
     __slots__ = ()
-    kind = "ticking"
-    is_class = True
-
-    @property
-    def long_running(self) -> bool:
-        return True
+    long_running = True
 
     def starter(self, backend: str | None = None) -> Starter:
         return functools.partial(start_instance, self.impl)
@@ -241,37 +220,29 @@ class GeneratorSkill(Skill):
     """A generator function that yields ``"running"`` until it returns its outcome."""
 
     __slots__ = ()
-    kind = "generator"
-
-    @property
-    def long_running(self) -> bool:
-        return True
+    long_running = True
 
     def starter(self, backend: str | None = None) -> Starter:
         return functools.partial(start_generator, self.impl, self.name)
 
 
+class Declaration(typing.TypedDict, total=False):
+    """The keywords of :func:`skill`."""
+
+    name: str | None
+    outcomes: Iterable[str] | None
+    reads: KeyDecl
+    writes: KeyDecl
+    backend: str
+
+
 @typing.overload
-def skill(
-    fn: Callable[..., Any],
-    *,
-    name: str | None = None,
-    outcomes: Iterable[str] | None = None,
-    reads: KeyDecl = (),
-    writes: KeyDecl = (),
-    backend: str = "default",
-) -> Skill: ...
+def skill(fn: Callable[..., Any], **declaration: typing.Unpack[Declaration]) -> Skill: ...
 
 
 @typing.overload
 def skill(
-    fn: None = None,
-    *,
-    name: str | None = None,
-    outcomes: Iterable[str] | None = None,
-    reads: KeyDecl = (),
-    writes: KeyDecl = (),
-    backend: str = "default",
+    fn: None = None, **declaration: typing.Unpack[Declaration]
 ) -> Callable[[Callable[..., Any]], Skill]: ...
 
 
@@ -325,14 +296,9 @@ def _keys(decl: KeyDecl, what: str, owner: str) -> tuple[frozenset[str], dict[st
         raise SkillDefinitionError(
             f"skill {owner}: {what}={decl!r} is a string; write {what}=({decl!r},)"
         )
-    types: dict[str, Any] = {}
-    if isinstance(decl, Mapping):
-        for k, t in decl.items():
-            if t is not None:
-                types[k] = t
-        keys = frozenset(decl)
-    else:
-        keys = frozenset(decl)
+    types = {k: t for k, t in decl.items() if t is not None} if isinstance(decl, Mapping) \
+        else {}
+    keys = frozenset(decl)
     for k in keys:
         if not isinstance(k, str) or not k:
             raise SkillDefinitionError(f"skill {owner}: blackboard key {k!r} must be a string")
@@ -349,18 +315,15 @@ def _make_skill(
 ) -> Skill:
     is_class = inspect.isclass(obj)
     outcome_source: Any = None  # the function whose return annotation lists the outcomes
-    if is_class and _is_ticking_class(obj):
-        tick = getattr(obj, "tick", None)
-        if not callable(getattr(obj, "start", None)) or not callable(tick):
+    tick = getattr(obj, "tick", None) if is_class else None
+    if callable(tick):
+        if not callable(getattr(obj, "start", None)):
             raise SkillDefinitionError(
                 f"class {obj.__name__}: a long-running skill defines both "
                 "`def start(self, bb, rng, *, params...) -> None` and "
                 "`def tick(self, bb, rng) -> Literal['running', 'success', ...]`"
             )
-        tick_args = [
-            p.name for p in inspect.signature(tick).parameters.values()
-            if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
-        ][1:]
+        tick_args = [p.name for p in _positional(tick)][1:]
         if len(tick_args) != 2:
             raise SkillDefinitionError(
                 f"class {obj.__name__}: tick must be `def tick(self, bb, rng)`, found "
@@ -395,10 +358,7 @@ def _make_skill(
 
     sig = inspect.signature(func)
     hints = _annotations(func)
-    positional = [
-        p for p in sig.parameters.values()
-        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
-    ][skip:]
+    positional = _positional(func)[skip:]
     if len(positional) != 2:
         raise SkillDefinitionError(
             f"skill {skill_name}: signature must be (bb, rng, *, params...), "
@@ -489,8 +449,9 @@ def _plain(value: Any) -> Any:
     return tuple(np.asarray(value).ravel().tolist()) if isinstance(value, np.ndarray) else value
 
 
-def _is_ticking_class(cls: type) -> bool:
-    return callable(getattr(cls, "tick", None))
+def _positional(func: Callable[..., Any]) -> list[inspect.Parameter]:
+    return [p for p in inspect.signature(func).parameters.values()
+            if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
 
 
 def _annotations(func: Any) -> dict[str, Any]:

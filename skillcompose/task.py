@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -217,8 +217,6 @@ def load_task(target: str, **settings: Any) -> Task:
         ) from exc
     if not isinstance(task, Task):
         raise TaskError(f"task {target}: make_task() returned {type(task).__name__}, not Task")
-    from dataclasses import replace
-
     return replace(task, ref=TaskRef(target, dict(settings)))
 
 

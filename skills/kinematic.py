@@ -71,6 +71,8 @@ from skills.kinematic_world import (
     WORLD_READS,
     WORLD_WRITES,
     GraspKind,
+    KinematicSkill,
+    KinematicWorld,
     RobotState,
     arms_for,
     base_collides,
@@ -80,7 +82,8 @@ from skills.kinematic_world import (
     fmt,
     free_arms,
     horizontal_grasp_world,
-    kinematics,
+    in_world,
+    kinematic_skill,
     object_box,
     object_position,
     reach,
@@ -177,13 +180,14 @@ def recognise_object(bb: Blackboard, rng: np.random.Generator) -> Literal["succe
     return "success"
 
 
-@skill(
+@kinematic_skill(
     name="MoveToObject",
     reads=(*_MOVE_READS, "jug_location_world"),
     writes=_MOVE_WRITES,
-    backend=BACKEND,
 )
-def move_to_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+def move_to_object(
+    world: KinematicWorld, bb: Blackboard, rng: np.random.Generator
+) -> Literal["success", "failure"]:
     """The gripper, upright, 6 cm in front of (−x of) the recognised jug, by IK.
 
     ``failure`` (``not_recognised``) before RecogniseObject; ``unreachable`` /
@@ -202,22 +206,23 @@ def move_to_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success
     arms = _empty_arms(state, arms_for(state, target.translation))
     if not arms:
         return fail(bb, "already_holding", "MoveToObject: both grippers are full")
-    answer = reach_either(state, arms, target, scene_world(bb), rng)
+    answer = reach_either(world, state, arms, target, scene_world(bb), rng)
     if answer.state is None:
         return fail(bb, answer.reason, f"MoveToObject: {answer.detail}")
     new = RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                      answer.state.q_arm_rad, answer.state.held, answer.arm)
-    commit(bb, new, gripper_rotation=(0.0, 0.0, 0.0))
+    commit(world, bb, new, gripper_rotation=(0.0, 0.0, 0.0))
     return "success"
 
 
-@skill(
+@kinematic_skill(
     name="GraspObject",
     reads=(*_MOVE_READS, "jug_location_world"),
     writes=(*_MOVE_WRITES, "holding_jug"),
-    backend=BACKEND,
 )
-def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+def grasp_object(
+    world: KinematicWorld, bb: Blackboard, rng: np.random.Generator
+) -> Literal["success", "failure"]:
     """Move the tool onto the jug (keeping its rotation) and close: the jug is held.
 
     ``failure``: ``not_recognised``; ``too_far`` when the gripper in use is more than 10 cm
@@ -230,8 +235,7 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
         return "success"
     jug = np.asarray(bb["jug_position_world"], dtype=float)
     robot_to_world = transform_robot_to_world(state.base_pose_world)
-    kin = kinematics()
-    tools = {a: robot_to_world * kin.transform_tool_to_robot(a, state.torso_height_m,
+    tools = {a: robot_to_world * world.transform_tool_to_robot(a, state.torso_height_m,
                                                              state.q_arm_rad[a])
              for a in ARMS}
     gaps = {a: float(np.linalg.norm(tools[a].translation - jug)) for a in ARMS}
@@ -243,7 +247,7 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
     if state.held[arm] is not None:
         return fail(bb, "already_holding",
                     f"GraspObject: the {arm} gripper holds {state.held[arm]!r}")
-    answer = reach(state, arm, pin.SE3(tools[arm].rotation, jug), scene_world(bb), rng)
+    answer = reach(world, state, arm, pin.SE3(tools[arm].rotation, jug), scene_world(bb), rng)
     if answer.state is None:
         return fail(bb, answer.reason, f"GraspObject: {answer.detail}")
     held = dict(answer.state.held)
@@ -252,7 +256,7 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
                      answer.state.q_arm_rad, held, arm)
     bb["holding_jug"] = True
     rotation = bb.get("gripper_rotation") if state.arm_in_use == arm else None
-    commit(bb, new, gripper_rotation=None if rotation is None else tuple(rotation))
+    commit(world, bb, new, gripper_rotation=None if rotation is None else tuple(rotation))
     return "success"
 
 
@@ -263,13 +267,13 @@ def _gripper_arms(state: RobotState, position: Sequence[float]) -> tuple[Arm, ..
     return _empty_arms(state, free_arms(state, position))
 
 
-@skill(
+@kinematic_skill(
     name="MoveGripperToParam",
     reads=_MOVE_READS,
     writes=_MOVE_WRITES,
-    backend=BACKEND,
 )
 def move_gripper_to_param(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -288,23 +292,24 @@ def move_gripper_to_param(
     arms = _gripper_arms(state, (x, y, z))
     if not arms:
         return fail(bb, "already_holding", "MoveGripperToParam: both grippers are full")
-    answer = reach_either(state, arms, pin.SE3(_rpy(*rotation), position), scene_world(bb), rng)
+    answer = reach_either(world, state, arms, pin.SE3(_rpy(*rotation), position),
+                          scene_world(bb), rng)
     if answer.state is None:
         return fail(bb, answer.reason, f"MoveGripperToParam: {answer.detail}")
     new = RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                      answer.state.q_arm_rad, answer.state.held, answer.arm)
-    commit(bb, new, gripper_rotation=(float(rotation[0]), float(rotation[1]),
+    commit(world, bb, new, gripper_rotation=(float(rotation[0]), float(rotation[1]),
                                       float(rotation[2])))
     return "success"
 
 
-@skill(
+@kinematic_skill(
     name="RotateGripperToParam",
     reads=_MOVE_READS,
     writes=_MOVE_WRITES,
-    backend=BACKEND,
 )
 def rotate_gripper_to_param(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -324,17 +329,17 @@ def rotate_gripper_to_param(
     if arm is None:
         gripper = bb.get("gripper_position_world") or (0.6, 0.0, 1.1)
         arm = arms_for(state, gripper)[0]
-    tool = robot_to_world * kinematics().transform_tool_to_robot(
+    tool = robot_to_world * world.transform_tool_to_robot(
         arm, state.torso_height_m, state.q_arm_rad[arm])
     target = pin.SE3(_rpy(rho, phi, theta), tool.translation.copy())
-    answer = reach(state, arm, target, scene_world(bb), rng)
+    answer = reach(world, state, arm, target, scene_world(bb), rng)
     if answer.state is None:
         fail(bb, answer.reason, f"RotateGripperToParam (gripper left as it was): "
              f"{answer.detail}")
         return "success"
     new = RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                      answer.state.q_arm_rad, answer.state.held, arm)
-    commit(bb, new, gripper_rotation=(rho, phi, theta))
+    commit(world, bb, new, gripper_rotation=(rho, phi, theta))
     return "success"
 
 
@@ -345,8 +350,9 @@ def check_success(bb: Blackboard, rng: np.random.Generator) -> Literal["success"
 
 
 # -- new skills ------------------------------------------------------------------------------
-@skill(name="MoveGripperToPose", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
+@kinematic_skill(name="MoveGripperToPose", reads=_MOVE_READS, writes=_MOVE_WRITES)
 def move_gripper_to_pose(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -362,22 +368,22 @@ def move_gripper_to_pose(
     free, base fixed; ``arm`` becomes the arm in use. ``failure`` with the IK reason."""
     state = read_state(bb)
     target = pin.SE3(_rpy(roll, pitch, yaw), np.array([x, y, z]))
-    answer = reach(state, arm, target, scene_world(bb), rng)
+    answer = reach(world, state, arm, target, scene_world(bb), rng)
     if answer.state is None:
         return fail(bb, answer.reason, f"MoveGripperToPose: {answer.detail}")
     new = RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                      answer.state.q_arm_rad, answer.state.held, arm)
-    commit(bb, new, gripper_rotation=(roll, pitch, yaw))
+    commit(world, bb, new, gripper_rotation=(roll, pitch, yaw))
     return "success"
 
 
-@skill(
+@kinematic_skill(
     name="Reachable",
     reads=(*ROBOT_READS, *WORLD_READS),
     writes=(REASON_KEY, DETAIL_KEY),
-    backend=BACKEND,
 )
 def reachable(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -396,15 +402,16 @@ def reachable(
         return "no"
     state = read_state(bb)
     target = horizontal_grasp_world(state.base_pose_world, position)
-    answer = reach(state, arm, target, scene_world(bb), rng, move_torso=False)
+    answer = reach(world, state, arm, target, scene_world(bb), rng, move_torso=False)
     if answer.state is None:
         fail(bb, answer.reason, f"Reachable: {answer.detail}")
         return "no"
     return "yes"
 
 
-@skill(name="PlaceBase", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
+@kinematic_skill(name="PlaceBase", reads=_MOVE_READS, writes=_MOVE_WRITES)
 def place_base(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -441,13 +448,13 @@ def place_base(
         if base_collides(base, scene) is not None:
             continue
         moved = RobotState(base, state.torso_height_m, state.q_arm_rad, state.held, arm)
-        if _arms_collide(moved, scene):
+        if _arms_collide(world, moved, scene):
             continue
         tried_arm = True
-        answer = reach(moved, arm, horizontal_grasp_world(base, position), scene, rng,
+        answer = reach(world, moved, arm, horizontal_grasp_world(base, position), scene, rng,
                        restarts=2, diagnose=False)
         if answer.state is not None:
-            commit(bb, RobotState(base, answer.state.torso_height_m, answer.state.q_arm_rad,
+            commit(world, bb, RobotState(base, answer.state.torso_height_m, answer.state.q_arm_rad,
                                   answer.state.held, arm))
             return "success"
         reasons.append(answer.reason)
@@ -459,13 +466,12 @@ def place_base(
                 f"{object!r} at {fmt(position)} m")
 
 
-def _arms_collide(state: RobotState, scene: Scene) -> bool:
+def _arms_collide(world: KinematicWorld, state: RobotState, scene: Scene) -> bool:
     """Whether either arm, at its joint angles, hits the scene (robot-frame check)."""
-    kin = kinematics()
     robot_to_world = transform_robot_to_world(state.base_pose_world)
     local = Scene(tuple(_box_to_robot(b, robot_to_world) for b in scene.boxes))
     return any(
-        check_collisions(kin.chains[a], state.coordinates(a), local,
+        check_collisions(world.chains[a], state.coordinates(a), local,
                          margin_m=COLLISION_MARGIN_M).collides
         for a in ARMS
     )
@@ -479,7 +485,7 @@ def _box_to_robot(box: Box, robot_to_world: pin.SE3) -> Box:
 
 
 def _drive_base(
-    bb: Blackboard, who: str, pose: tuple[float, float, float], torso: float,
+    world: KinematicWorld, bb: Blackboard, who: str, pose: tuple[float, float, float], torso: float,
     arm: Literal["left", "right"],
 ) -> Literal["success", "failure"]:
     """Drive the base to ``pose`` (x, y, yaw in world), set the torso, choose the arm:
@@ -498,16 +504,16 @@ def _drive_base(
         return fail(bb, "collision", f"{who}: the base at {fmt(pose)} (m, m, rad) "
                     f"hits {hit!r} (base half size {BASE_HALF_EXTENTS_M[0]} m)")
     moved = RobotState((x, y, yaw), torso, state.q_arm_rad, state.held, arm)
-    if _arms_collide(moved, scene):
+    if _arms_collide(world, moved, scene):
         return fail(bb, "collision", f"{who}: at {fmt(pose)} with the torso at "
                     f"{torso:.3f} m an arm hits the scene")
-    commit(bb, moved)
+    commit(world, bb, moved)
     return "success"
 
 
-@skill(name="MoveBasePose", reads=(*_MOVE_READS, "room_half_m"), writes=_MOVE_WRITES,
-       backend=BACKEND)
+@kinematic_skill(name="MoveBasePose", reads=(*_MOVE_READS, "room_half_m"), writes=_MOVE_WRITES)
 def move_base_pose(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -520,10 +526,10 @@ def move_base_pose(
     """Drive the base to (x, y, yaw) in world, set the torso, choose the arm: section 4.2's
     five MoveBase outputs as explicit parameters. ``failure`` (``collision``) when the base
     box or an arm at the new pose hits the table; held objects move with the robot."""
-    return _drive_base(bb, "MoveBasePose", (x, y, yaw), torso, arm)
+    return _drive_base(world, bb, "MoveBasePose", (x, y, yaw), torso, arm)
 
 
-def make_move_base(topology: Topology) -> Skill:
+def make_move_base(topology: Topology) -> KinematicSkill:
     """The kinematic twin of the network ``MoveBase`` of :mod:`skills.move_to_push`: the
     same network and the same mapping of its outputs to a base pose, torso height and arm,
     then the motion of :func:`move_base_pose` on the PR2 model."""
@@ -531,7 +537,8 @@ def make_move_base(topology: Topology) -> Skill:
     weights_type, zeros = weights_parameter(topology)
 
     def move_base(
-        bb: Blackboard, rng: np.random.Generator, *, weights: weights_type = zeros
+        world: KinematicWorld, bb: Blackboard, rng: np.random.Generator, *,
+        weights: weights_type = zeros,
     ) -> Literal["success", "failure"]:
         goal = network_goal(bb, rng, topology, weights)
         if goal == "no_object":
@@ -541,18 +548,20 @@ def make_move_base(topology: Topology) -> Skill:
             return fail(bb, "collision", "MoveBase: the network's base pose comes closer "
                         f"than {SAFETY_M} m to the table")
         pose, torso, arm = goal
-        return _drive_base(bb, "MoveBase", pose, torso, arm)
+        return _drive_base(world, bb, "MoveBase", pose, torso, arm)
 
     move_base.__doc__ = make_move_base.__doc__
     # this module postpones annotations; the vector's length is only known here
     move_base.__annotations__["weights"] = weights_type
-    return skill(move_base, name="MoveBase",
-                 reads=(*_MOVE_READS, "object_location_world", "room_half_m"),
-                 writes=_MOVE_WRITES, backend=BACKEND)
+    return kinematic_skill(name="MoveBase",
+                           reads=(*_MOVE_READS, "object_location_world", "room_half_m"),
+                           writes=_MOVE_WRITES)(move_base)
 
 
-@skill(name="Push", reads=_MOVE_READS, writes=(*_MOVE_WRITES, "pushed"), backend=BACKEND)
-def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+@kinematic_skill(name="Push", reads=_MOVE_READS, writes=(*_MOVE_WRITES, "pushed"))
+def push(
+    world: KinematicWorld, bb: Blackboard, rng: np.random.Generator
+) -> Literal["success", "failure"]:
     """Push ``object_position_world`` 5 cm away from the robot with the arm in use.
 
     The tool, horizontal and pointing along the bearing from the base, goes from 5 cm before
@@ -571,14 +580,14 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
     direction = end.rotation[:, 0]
     start = pin.SE3(end.rotation, end.translation - PUSH_DISTANCE_M * direction)
     scene = scene_world(bb)
-    first = reach(state, arm, start, scene, rng, move_torso=False)
+    first = reach(world, state, arm, start, scene, rng, move_torso=False)
     if first.state is None:
         return fail(bb, first.reason, f"Push (contact): {first.detail}")
-    second = reach(first.state, arm, end, scene, rng, move_torso=False)
+    second = reach(world, first.state, arm, end, scene, rng, move_torso=False)
     if second.state is None:
         return fail(bb, second.reason, f"Push (stroke): {second.detail}")
     pushed = end.translation + PUSH_DISTANCE_M * direction
-    commit(bb, RobotState(second.state.base_pose_world, second.state.torso_height_m,
+    commit(world, bb, RobotState(second.state.base_pose_world, second.state.torso_height_m,
                           second.state.q_arm_rad, second.state.held, arm),
            moved_objects={"object": (float(pushed[0]), float(pushed[1]), float(pushed[2]))})
     bb["pushed"] = True
@@ -588,9 +597,11 @@ def push(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failur
 _WHICH = Which
 
 
-@skill(name="GraspParam", reads=(*_MOVE_READS, "objects_grasped", "object_locations_world"),
-       writes=(*_MOVE_WRITES, "objects_grasped", "grasp_target"), backend=BACKEND)
+@kinematic_skill(name="GraspParam",
+                 reads=(*_MOVE_READS, "objects_grasped", "object_locations_world"),
+                 writes=(*_MOVE_WRITES, "objects_grasped", "grasp_target"))
 def grasp_param(
+    world: KinematicWorld,
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
     """Grasp the first (``which`` > 0.5) or second stacking object, from the side else from
@@ -610,21 +621,22 @@ def grasp_param(
     bb["grasp_target"] = name
     position = object_position(bb, name)
     assert position is not None  # the name came from the same mapping
-    kind, answer = reach_grasp(state, arms_for(state, position), position, scene_world(bb),
+    kind, answer = reach_grasp(world, state, arms_for(state, position), position, scene_world(bb),
                                rng)
     if answer.state is None:
         return fail(bb, answer.reason, f"GraspParam: {answer.detail}")
     bb[GRASP_KEY] = kind
     held = dict(answer.state.held)
     held[answer.arm] = name
-    commit(bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
+    commit(world, bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                           answer.state.q_arm_rad, held, answer.arm))
     bb["objects_grasped"] = (*(bb.get("objects_grasped") or ()), name)
     return "success"
 
 
-@skill(name="MoveGripperToStack", reads=_MOVE_READS, writes=_MOVE_WRITES, backend=BACKEND)
+@kinematic_skill(name="MoveGripperToStack", reads=_MOVE_READS, writes=_MOVE_WRITES)
 def move_gripper_to_stack(
+    world: KinematicWorld,
     bb: Blackboard,
     rng: np.random.Generator,
     *,
@@ -666,17 +678,18 @@ def move_gripper_to_stack(
                         f"{fmt(position)} m would sink into {hit!r}")
     kinds: tuple[GraspKind, ...] = ("top",) if holding is None else \
         (bb.get(GRASP_KEY) or "top",)
-    _, answer = reach_grasp(state, arms, position, Scene(tuple(table)), rng, kinds)
+    _, answer = reach_grasp(world, state, arms, position, Scene(tuple(table)), rng, kinds)
     if answer.state is None:
         return fail(bb, answer.reason, f"MoveGripperToStack: {answer.detail}")
-    commit(bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
+    commit(world, bb, RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
                           answer.state.q_arm_rad, answer.state.held, answer.arm))
     return "success"
 
 
-@skill(name="OpenGripper", reads=_MOVE_READS, writes=(*_MOVE_WRITES, "holding_jug"),
-       backend=BACKEND)
-def open_gripper(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+@kinematic_skill(name="OpenGripper", reads=_MOVE_READS, writes=(*_MOVE_WRITES, "holding_jug"))
+def open_gripper(
+    world: KinematicWorld, bb: Blackboard, rng: np.random.Generator
+) -> Literal["success"]:
     """Open the gripper in use; a held stacking object falls straight down onto the highest
     surface under it (the table, another object or the floor). Always ``success``."""
     state = read_state(bb)
@@ -690,7 +703,7 @@ def open_gripper(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]
     released = RobotState(state.base_pose_world, state.torso_height_m, state.q_arm_rad, held,
                           state.arm_in_use)
     centre = object_position(bb, name) or (0.0, 0.0, 0.0)
-    commit(bb, released)
+    commit(world, bb, released)
     bb[GRASP_KEY] = None
     if name == "jug":
         bb["holding_jug"] = False  # the jug stays where it was let go (not modelled)
@@ -699,7 +712,7 @@ def open_gripper(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]
     stack = bb.get("object_positions_world") or {}
     z = landing_z(box, [*scene_world(bb).boxes,
                         *(object_box(bb, n, p) for n, p in stack.items() if n != name)])
-    commit(bb, released, moved_objects={name: (box.center_m[0], box.center_m[1], z)})
+    commit(world, bb, released, moved_objects={name: (box.center_m[0], box.center_m[1], z)})
     return "success"
 
 
@@ -725,20 +738,24 @@ TWINS = tuple(s.name for s in SKILLS[:6])
 """Names of the skills that have an abstract ("sim") twin today."""
 
 
-def register(registry: Registry) -> None:
-    """Add every kinematic skill (backend ``"kinematic"``) to ``registry``.
+def register(registry: Registry, *, world: KinematicWorld | None = None) -> KinematicWorld:
+    """Add every kinematic skill (backend ``"kinematic"``) to ``registry``, running in
+    ``world`` (default: a new :class:`~skills.kinematic_world.KinematicWorld`); return it.
 
     The registry refuses a twin whose signature differs from the abstract skill of the same
     name already in it. Task-free: ``--skills skills.kinematic``.
     """
-    for s in SKILLS:
+    world = world or KinematicWorld()
+    for s in in_world(SKILLS, world):
         registry.add(s)
+    return world
 
 
 def register_move_to_push(registry: Registry, *, topology: Topology = "layered") -> None:
     """Add the kinematic twins of the move-to-push skills (:mod:`skills.move_to_push`):
     MoveBase for a ``topology`` network and Push. RecogniseObject has one implementation
     for both backends (perception is not kinematics)."""
-    registry.add(make_move_base(topology))
-    registry.add(push)
+    world = KinematicWorld()
+    registry.add(make_move_base(topology).in_world(world))
+    registry.add(push.in_world(world))
 

@@ -2,8 +2,10 @@
 
 The kinematic skills (:mod:`skills.kinematic`) move a PR2 (:mod:`robots`) instead of flipping
 coins. This module holds what they share: the blackboard keys of the robot, the conventions
-that tie the abstract world of the ``"sim"`` skills to the robot, the cached model and IK
-solvers, and one function per kind of motion check.
+that tie the abstract world of the ``"sim"`` skills to the robot, the :class:`KinematicWorld`
+the skills move in (the model, loaded once per process and shared read-only, and the world's
+own IK solvers), the :class:`KinematicSkill` kind bound to one, and one function per kind of
+motion check.
 
 Frames. The abstract skills describe the world "in the robot's base frame", named ``world``
 in their keys. Here ``world`` is the floor frame of :mod:`robots` (z up) and the PR2 starts
@@ -41,17 +43,20 @@ key                           meaning
 ``last_failure_detail``       the same in words: skill, arm, target and solver status
 ============================= ===============================================================
 
-Determinism. IK restarts draw from the run's generator (one draw per IK request reseeds the
-solver) and stop after a fixed number of restarts rather than a wall-clock budget, so the
-same seed gives the same outcome on any machine.
+Determinism. IK restarts draw from a generator seeded by one draw from the run's per IK
+request, and stop after a fixed number of restarts rather than a wall-clock budget, so the
+same seed gives the same outcome on any machine; no state of one run is left in the world
+for the next.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
+import inspect
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -77,7 +82,8 @@ from robots.model import (
     RobotModel,
     load_pr2,
 )
-from skillcompose import Blackboard
+from skillcompose import Blackboard, Skill, SkillSpec, skill
+from skillcompose.skill import SkillFn
 from skills.pour_water import POUR_TILT_MAX_RAD, POUR_TILT_MIN_RAD, pours_into_glass
 
 __all__ = [
@@ -107,7 +113,8 @@ __all__ = [
     "WORLD_READS",
     "WORLD_WRITES",
     "GraspKind",
-    "Kinematics",
+    "KinematicSkill",
+    "KinematicWorld",
     "Reach",
     "RobotState",
     "base_collides",
@@ -116,7 +123,8 @@ __all__ = [
     "grasp_offset_world",
     "grasp_pose_world",
     "horizontal_grasp_world",
-    "kinematics",
+    "in_world",
+    "kinematic_skill",
     "object_box",
     "object_position",
     "reach",
@@ -205,17 +213,38 @@ WORLD_WRITES = (
 """World keys a moving skill may write."""
 
 
-# -- the model and its solvers, loaded once per process -------------------------------------
-@dataclass
-class Kinematics:
-    """The PR2 and one IK solver per arm (arm + torso, in the robot frame)."""
+# -- the world the skills move in ----------------------------------------------------------
+@functools.lru_cache(maxsize=1)
+def _pr2() -> tuple[RobotModel, dict[Arm, KinematicChain], dict[Arm, KinematicChain]]:
+    """The PR2 and its arm + torso chains, with and without arm joint limits: loaded once
+    per process (about 0.3 s) and only read, each thread with its own Pinocchio work data."""
+    model = load_pr2()
+    chains: dict[Arm, KinematicChain] = {arm: model.chain(f"{arm}_arm_torso") for arm in ARMS}
+    free = {}
+    for arm in ARMS:
+        chain = chains[arm]
+        arm_coordinates = np.array([name != TORSO_JOINT for name in chain.coordinate_names])
+        free[arm] = dataclasses.replace(
+            chain,
+            lower_limits=np.where(arm_coordinates, -np.inf, chain.lower_limits),
+            upper_limits=np.where(arm_coordinates, np.inf, chain.upper_limits),
+        )
+    return model, chains, free
 
-    model: RobotModel
-    chains: dict[Arm, KinematicChain]
-    solvers: dict[Arm, IKSolver]
-    free_solvers: dict[Arm, IKSolver]
-    """Solvers on the same chains without arm joint limits: they tell ``joint_limits``
-    from ``unreachable``."""
+
+class KinematicWorld:
+    """The robot the kinematic skills move: the PR2 model and chains (shared read-only by
+    every world of the process) and this world's IK solvers, one per arm (arm + torso, in
+    the robot frame). A registry's kinematic skills run in the world their ``register``
+    made (:class:`KinematicSkill`); nothing of it is global. The solvers draw from the
+    generator each request passes, derived from the run's."""
+
+    def __init__(self) -> None:
+        self.model, self.chains, free = _pr2()
+        self.solvers = {arm: IKSolver(chain=self.chains[arm], arm=arm) for arm in ARMS}
+        self.free_solvers = {arm: IKSolver(chain=free[arm], arm=arm) for arm in ARMS}
+        """Solvers on the same chains without arm joint limits: they tell
+        ``joint_limits`` from ``unreachable``."""
 
     def transform_tool_to_robot(self, arm: Arm, torso_m: float, q_arm_rad: Sequence[float]
                                 ) -> pin.SE3:
@@ -223,23 +252,49 @@ class Kinematics:
         return self.chains[arm].transform_tool_to_world(arm, np.array([torso_m, *q_arm_rad]))
 
 
-@functools.lru_cache(maxsize=1)
-def kinematics() -> Kinematics:
-    """The shared :class:`Kinematics` (built on first use, about 0.3 s)."""
-    model = load_pr2()
-    chains: dict[Arm, KinematicChain] = {arm: model.chain(f"{arm}_arm_torso") for arm in ARMS}
-    solvers = {arm: IKSolver(chain=chains[arm], arm=arm, seed=0) for arm in ARMS}
-    free = {}
-    for arm in ARMS:
-        chain = chains[arm]
-        arm_coordinates = np.array([name != TORSO_JOINT for name in chain.coordinate_names])
-        unlimited = dataclasses.replace(
-            chain,
-            lower_limits=np.where(arm_coordinates, -np.inf, chain.lower_limits),
-            upper_limits=np.where(arm_coordinates, np.inf, chain.upper_limits),
-        )
-        free[arm] = IKSolver(chain=unlimited, arm=arm, seed=0)
-    return Kinematics(model, chains, solvers, free)
+class KinematicSkill(Skill):
+    """A skill of the ``kinematic`` backend, ``f(world, bb, rng, *, params...)``: it runs in
+    a :class:`KinematicWorld`. :meth:`in_world` gives it bound to one (``register`` functions
+    bind their skills to the world they make); an unbound one, called alone or compiled,
+    makes a world of its own each time it is bound."""
+
+    __slots__ = ("world",)
+
+    def __init__(self, spec: SkillSpec, impl: Any, *, backend: str = "kinematic",
+                 world: KinematicWorld | None = None) -> None:
+        super().__init__(spec, impl, backend=backend)
+        self.world = world
+
+    def in_world(self, world: KinematicWorld) -> KinematicSkill:
+        bound = copy.copy(self)
+        bound.world = world
+        return bound
+
+    def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
+        return functools.partial(self.impl, self.world or KinematicWorld())
+
+
+def kinematic_skill(**declaration: Any) -> Callable[[Callable[..., str]], KinematicSkill]:
+    """``@skill(**declaration, backend="kinematic")`` for ``f(world, bb, rng, *, ...)``: the
+    declaration is read from the signature after ``world``."""
+
+    def wrap(fn: Callable[..., str]) -> KinematicSkill:
+        @functools.wraps(fn)
+        def declared(bb: Blackboard, rng: np.random.Generator, **params: Any) -> str:
+            raise AssertionError("never called: KinematicSkill.bind passes the world")
+
+        sig = inspect.signature(fn)
+        declared.__signature__ = sig.replace(  # type: ignore[attr-defined]
+            parameters=list(sig.parameters.values())[1:])
+        spec = skill(declared, backend="kinematic", **declaration).spec
+        return KinematicSkill(spec, fn)
+
+    return wrap
+
+
+def in_world(skills: Iterable[Skill], world: KinematicWorld) -> list[Skill]:
+    """``skills``, the kinematic ones bound to ``world`` (the others need none)."""
+    return [s.in_world(world) if isinstance(s, KinematicSkill) else s for s in skills]
 
 
 # -- the robot's state on the blackboard -----------------------------------------------------
@@ -295,6 +350,7 @@ def _pose6(transform: pin.SE3) -> tuple[float, ...]:
 
 
 def commit(
+    world: KinematicWorld,
     bb: Blackboard,
     state: RobotState,
     *,
@@ -310,14 +366,13 @@ def commit(
     when ``held_grasp`` is ``side``), and a held jug's water pours
     or spills as in :mod:`skills.pour_water`. ``moved_objects`` sets other objects' positions.
     """
-    kin = kinematics()
     robot_to_world = transform_robot_to_world(state.base_pose_world)
     bb[BASE_POSE_KEY] = state.base_pose_world
     bb[TORSO_KEY] = state.torso_height_m
     tools: dict[Arm, pin.SE3] = {}
     for arm in ARMS:
         bb[Q_KEYS[arm]] = tuple(state.q_arm_rad[arm])
-        tools[arm] = robot_to_world * kin.transform_tool_to_robot(
+        tools[arm] = robot_to_world * world.transform_tool_to_robot(
             arm, state.torso_height_m, state.q_arm_rad[arm]
         )
         bb[TOOL_KEYS[arm]] = _pose6(tools[arm])
@@ -503,15 +558,16 @@ def grasp_pose_world(kind: GraspKind, base_pose_world: Sequence[float],
 
 
 def reach_grasp(
-    state: RobotState, arms: Sequence[Arm], centre_world: Sequence[float], scene: Scene,
-    rng: np.random.Generator, kinds: Sequence[GraspKind] = GRASP_KINDS, **options: Any,
+    world: KinematicWorld, state: RobotState, arms: Sequence[Arm],
+    centre_world: Sequence[float], scene: Scene, rng: np.random.Generator,
+    kinds: Sequence[GraspKind] = GRASP_KINDS, **options: Any,
 ) -> tuple[GraspKind, Reach]:
     """:func:`reach_either` for the pose of each grasp kind in turn: the first success, else
     the first kind's failure."""
     first: tuple[GraspKind, Reach] | None = None
     for kind in kinds:
-        answer = reach_either(state, arms, grasp_pose_world(kind, state.base_pose_world,
-                                                            centre_world), scene, rng, **options)
+        answer = reach_either(world, state, arms, grasp_pose_world(
+            kind, state.base_pose_world, centre_world), scene, rng, **options)
         if answer.ok:
             return kind, answer
         first = first or (kind, answer)
@@ -535,6 +591,7 @@ class Reach:
 
 
 def reach(
+    world: KinematicWorld,
     state: RobotState,
     arm: Arm,
     target_world: pin.SE3,
@@ -554,7 +611,7 @@ def reach(
     ``joint_limits`` (solutions exist only outside the limits), ``unreachable``; without
     ``diagnose`` the last two are both reported as ``unreachable``.
     """
-    kin = kinematics()
+    kin = world
     robot_to_world = transform_robot_to_world(state.base_pose_world)
     target_robot = robot_to_world.actInv(target_world)
     target = IKTarget(
@@ -611,6 +668,7 @@ def reach(
 
 
 def reach_either(
+    world: KinematicWorld,
     state: RobotState,
     arms: Sequence[Arm],
     target_world: pin.SE3,
@@ -622,7 +680,7 @@ def reach_either(
     arm's failure."""
     first: Reach | None = None
     for arm in arms:
-        answer = reach(state, arm, target_world, scene, rng, **options)
+        answer = reach(world, state, arm, target_world, scene, rng, **options)
         if answer.ok:
             return answer
         first = first or answer

@@ -25,11 +25,10 @@ from matplotlib.figure import Figure
 
 from robots.collision import Box, Scene
 from robots.model import TUCKED_ARM_RAD, RobotPose, load_pr2
-from robots.render import render_configuration
-from skillcompose import Blackboard, load_fsa, load_task
+from robots.render import render_configuration, scene_camera
+from skillcompose import RUNNING, Blackboard, load_fsa, load_task
 from skillcompose.executor import compile_fsa, trial_rngs
 from skillcompose.task import parse_settings
-from skillcompose.ticking import RUNNING
 from skills.kinematic_world import DEFAULT_OBJECT_HALF_EXTENTS_M, scene_world
 
 __all__ = ["Replay", "main", "replay", "robot_pose", "world_scene"]
@@ -85,8 +84,8 @@ def replay(
     rng = next(iter(trial_rngs(seed, 1)))
     bb = task.setup(rng)
     model = load_pr2()
-    frames = [render_configuration(model, robot_pose(bb), out / "step_00.png",
-                                   scene=world_scene(bb), title="start")]
+    # the run first, then the pictures, all from one camera that shows every step
+    steps = [(robot_pose(bb), world_scene(bb), "start", out / "step_00.png")]
     run = compiled.start(bb, rng, trace=True)
     status = RUNNING
     while status == RUNNING:
@@ -96,10 +95,11 @@ def replay(
             break
         last = trace[-1]
         title = f"step {last.step}: {last.state} ({last.skill}) -> {last.outcome}"
-        frames.append(render_configuration(
-            model, robot_pose(bb), out / f"step_{last.step:02d}.png", scene=world_scene(bb),
-            title=title,
-        ))
+        steps.append((robot_pose(bb), world_scene(bb), title,
+                      out / f"step_{last.step:02d}.png"))
+    camera = scene_camera(model, [pose for pose, *_ in steps], steps[0][1])
+    frames = [render_configuration(model, pose, path, scene=scene, title=title, camera=camera)
+              for pose, scene, title, path in steps]
     result = run.result
     return Replay(result.outcome, result.steps, tuple(frames), _strip(frames, out / "strip.png"),
                   _gif(frames, out / "replay.gif"))

@@ -385,10 +385,11 @@ def reach_registry(topology: Topology = "layered", *, kinematic: bool = True) ->
     registry.add(reach_check)
     if kinematic:
         from skills import kinematic as skills_kinematic
-        from skills import stacking_kinematic
+        from skills import kinematic_world, stacking_kinematic
 
-        registry.add(skills_kinematic.make_move_base(topology))
-        registry.add(stacking_kinematic.reach_check)
+        world = kinematic_world.KinematicWorld()
+        registry.add(skills_kinematic.make_move_base(topology).in_world(world))
+        registry.add(stacking_kinematic.reach_check.in_world(world))
     return registry
 
 

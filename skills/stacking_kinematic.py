@@ -11,7 +11,7 @@ from typing import Literal
 
 import numpy as np
 
-from skillcompose import Blackboard, skill
+from skillcompose import Blackboard
 from skills.kinematic_world import (
     DETAIL_KEY,
     GRASP_KEY,
@@ -20,7 +20,9 @@ from skills.kinematic_world import (
     ROBOT_READS,
     WORLD_READS,
     GraspKind,
+    KinematicWorld,
     fail,
+    kinematic_skill,
     reach_grasp,
     read_state,
     scene_world,
@@ -30,9 +32,11 @@ from skills.stacking import held, reach_arms, reach_goal
 __all__ = ["reach_check"]
 
 
-@skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS, "grasp_target"),
-       writes=(REASON_KEY, DETAIL_KEY), backend="kinematic")
-def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
+@kinematic_skill(name="Push", reads=(*ROBOT_READS, *WORLD_READS, "grasp_target"),
+                 writes=(REASON_KEY, DETAIL_KEY))
+def reach_check(
+    world: KinematicWorld, bb: Blackboard, rng: np.random.Generator
+) -> Literal["success", "failure"]:
     """MoveToReach's Push on the PR2 model, moving nothing: ``success`` when IK finds a grasp
     (:data:`skills.kinematic_world.GRASP_KINDS`; holding, the kind it holds with) by an arm of
     :func:`skills.stacking.reach_arms` (the holding one, else the arm MoveBase chose and then
@@ -46,7 +50,8 @@ def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", 
     arms = sorted(reach_arms(bb), key=lambda a: a != state.arm_in_use)
     kinds: tuple[GraspKind, ...] = GRASP_KINDS if held(bb) is None else \
         (bb.get(GRASP_KEY) or "top",)
-    _, answer = reach_grasp(state, arms, goal[1], scene_world(bb), rng, kinds, diagnose=False)
+    _, answer = reach_grasp(world, state, arms, goal[1], scene_world(bb), rng, kinds,
+                            diagnose=False)
     if answer.state is None:
         return fail(bb, answer.reason, f"Push (MoveToReach): {answer.detail}")
     return "success"

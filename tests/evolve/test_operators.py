@@ -179,6 +179,28 @@ def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
     assert "failure" in msg and "state B" in msg  # the unrouted outcome of PickBlock
 
 
+
+def test_seed_fsa_parameters_are_checked_as_the_model_checks_them(
+    toy: Task, toy_skills: SkillSet
+) -> None:
+    from evolve import SeedFSAError
+    from skillcompose import FSAValidationError, loads_fsa
+
+    text = (
+        "format: 1\nstart: A\nstates:\n  A:\n    skill: Carry\n"
+        "    params: {distance: 7.0, speed: 1}\n"
+        "    transitions: {success: success, failure: failure}\n"
+    )
+    fsa = loads_fsa(text, "seed.yaml")
+    with pytest.raises(FSAValidationError) as model:
+        fsa.validate(toy.registry)
+    with pytest.raises(SeedFSAError) as genome:
+        Genome.from_fsa(fsa, toy_skills)
+    said = str(genome.value)
+    for problem in model.value.problems:  # the same words, each at its line
+        assert f"seed.yaml:{problem.line}: {problem.render()}" in said
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=seeds, size=sizes)
 def test_terminating_skills_alone_end_runs(toy: Task, seed: int, size: int) -> None:

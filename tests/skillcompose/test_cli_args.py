@@ -112,12 +112,13 @@ def test_an_output_that_fails_when_written_is_one_line_and_status_1(
 
 
 def test_an_unexpected_error_is_one_line_and_status_1(monkeypatch: pytest.MonkeyPatch) -> None:
-    import skillcompose.cli
+    import skillcompose.fsafile
 
     def broken(*args: object) -> None:
         raise ZeroDivisionError("division by zero")
 
-    monkeypatch.setattr(skillcompose.cli, "load_fsa", broken)
+    # the command imports the reader when it runs
+    monkeypatch.setattr(skillcompose.fsafile, "load_fsa", broken)
     code, _, err = cli("validate", REFERENCE)
     assert code == 1 and len(err.strip().splitlines()) == 1
     assert "unexpected ZeroDivisionError: division by zero" in err and "--traceback" in err

@@ -270,7 +270,13 @@ def test_time_limit_in_a_file_stops_a_hanging_state(tmp_path: Path) -> None:
 
 def test_a_loaded_fsa_holds_plain_data_only() -> None:
     """The model is format-neutral: a loaded FSA (renamed, too) holds no YAML library
-    object; the writer reads the kept text again to keep the file's comments."""
+    object in its own fields; the reader's nodes and the rename log sit in the file layer's
+    handle (``FileOrigin``, the FSA's source), which the writer alone reads."""
+    import pickle
+
+    from skillcompose.fsa import Source
+    from skillcompose.fsafile import FileOrigin
+
     path = Path(__file__).resolve().parents[2] / "examples" / "pour_water_reference.fsa.yaml"
     fsa = load_fsa(path).rename_state("Recognise", "Look")
 
@@ -283,11 +289,13 @@ def test_a_loaded_fsa_holds_plain_data_only() -> None:
             for v in value:
                 found |= modules(v)
         elif hasattr(value, "__dataclass_fields__"):
-            for name in value.__dataclass_fields__:
+            own = Source if isinstance(value, FileOrigin) else value
+            for name in own.__dataclass_fields__:
                 found |= modules(getattr(value, name))
         return found
 
     assert not any(m.startswith("ruamel") for m in modules(fsa))
-    assert fsa.source is not None and fsa.source.renames == {"Recognise": "Look"}
+    assert isinstance(fsa.source, FileOrigin) and fsa.source.renames == {"Recognise": "Look"}
     text = dumps_fsa(fsa)
+    assert dumps_fsa(pickle.loads(pickle.dumps(fsa))) == text  # a copy parses the text again
     assert "  Look:                     # store where the jug and the glass are" in text

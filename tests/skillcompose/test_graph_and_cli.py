@@ -27,7 +27,23 @@ def test_graph_and_trap_states() -> None:
     g = to_networkx(LOOPY)
     assert g.number_of_edges() == 6
     assert g.nodes["Count_1"]["start"]
-    assert trap_states(LOOPY) == ["Spin_3", "Spin_4"]
+    assert trap_states(LOOPY) == ["Spin_3", "Spin_4"] == LOOPY.trap_states()
+
+
+@pytest.mark.parametrize("name", ["pour_water_reference", "stacking_reference",
+                                  "move_to_reach"])
+def test_trap_states_without_networkx_agree(name: str) -> None:
+    import dataclasses
+
+    from skillcompose import load_fsa
+
+    fsa = load_fsa(Path(__file__).resolve().parents[2] / "examples" / f"{name}.fsa.yaml")
+    cut = fsa.replace(states={  # the start's outcomes all loop back: nothing ends
+        s: st if s != fsa.start else dataclasses.replace(
+            st, transitions=dict.fromkeys(st.transitions, fsa.start))
+        for s, st in fsa.states.items()})
+    assert fsa.trap_states() == trap_states(fsa) == []
+    assert cut.trap_states() == trap_states(cut) == [fsa.start]
 
 
 def test_dot_and_mermaid() -> None:

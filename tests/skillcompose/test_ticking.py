@@ -13,16 +13,18 @@ from hypothesis import strategies as st
 
 from skillcompose import (
     FSA,
+    RUNNING,
     Blackboard,
     ParamError,
     Registry,
     SkillDefinitionError,
     State,
     compile_fsa,
+    run_ticking,
     skill,
 )
 from skillcompose.errors import SkillProtocolError
-from skillcompose.ticking import RUNNING, run_ticking
+from skillcompose.skill import GeneratorSkill, TickingSkill
 
 from .mixed_skills import Calls, as_skill, make_registry, mixed_fsa
 
@@ -40,7 +42,7 @@ def registry(calls: Calls) -> Registry:
 
 def test_decorator_reads_long_running_declarations(registry: Registry) -> None:
     move, wait = registry.resolve("Move"), registry.resolve("Wait")
-    assert (move.kind, wait.kind) == ("ticking", "generator")
+    assert isinstance(move, TickingSkill) and isinstance(wait, GeneratorSkill)
     assert move.spec.outcomes == ("success", "failure")  # "running" is not an outcome
     assert move.spec.param_names == ("n",) and wait.spec.param_names == ("n",)
     assert move.spec.reads == {"count"} and move.spec.writes == {"pos"}

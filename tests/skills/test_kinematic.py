@@ -47,7 +47,15 @@ def test_register_beside_the_abstract_skills() -> None:
     assert {s.name for s in added} == {s.name for s in kn.SKILLS}
     for s in pw.SKILLS:
         assert sorted(registry.backends(s.name)) == ["kinematic", "sim"]
-    assert registry.resolve("MoveBasePose", "kinematic") is kn.move_base_pose
+    bound = registry.resolve("MoveBasePose", "kinematic")
+    assert isinstance(bound, kw.KinematicSkill) and bound.impl is kn.move_base_pose.impl
+    push = registry.resolve("Push", "kinematic")
+    assert isinstance(push, kw.KinematicSkill) and push.world is bound.world  # one per register
+    other = Registry()
+    assert kn.register(other) is not bound.world  # another registry, another world
+    push = other.resolve("Push")
+    assert isinstance(push, kw.KinematicSkill) and push.world is not bound.world
+    assert kn.register(Registry(), world=bound.world) is bound.world  # or the one given
 
 
 # -- the pour-water twins ------------------------------------------------------------------
@@ -68,7 +76,7 @@ def test_pour_sequence_writes_kinematic_keys() -> None:
     assert bb["water"] == "glass"
     assert kn.check_success(bb, 5) == "success"
     # the stored joint angles put the tool where the blackboard says
-    kin = kw.kinematics()
+    kin = kw.KinematicWorld()
     tool_robot = kin.transform_tool_to_robot("right", bb["torso_height_m"], bb["q_right_arm_rad"])
     assert np.allclose(tool_robot.translation, bb["gripper_position_world"], atol=1e-9)
     assert kin.chains["right"].within_limits(np.array([bb["torso_height_m"],
@@ -128,7 +136,7 @@ def test_joint_limits_reason_is_checked_against_unlimited_ik() -> None:
 
     target = IKTarget(np.array([pose["x"], pose["y"], pose["z"]]),
                       pin.rpy.rpyToMatrix(pose["roll"], pose["pitch"], pose["yaw"]))
-    kin = kw.kinematics()
+    kin = kw.KinematicWorld()
     limited = IKSolver(chain=kin.chains["right"], arm="right", seed=7)
     assert not limited.solve(target, time_budget_s=10.0, max_restarts=60, diagnose=False).success
     unlimited = IKSolver(chain=kin.free_solvers["right"].chain, arm="right", seed=7)

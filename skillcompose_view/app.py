@@ -1,0 +1,687 @@
+"""The web app of ``skillcompose view``, built with NiceGUI (FastAPI, uvicorn, Vue/Quasar).
+
+Pages: ``/`` runs (table and fitness chart, updated live), ``/fsa`` an FSA file (graph,
+states, YAML with its problems at their lines), ``/replay`` one episode stepped forward and
+back (graph, blackboard, changes, the PR2 in 3D on a kinematic task), ``/live`` the FSAs a
+program publishes as they run (:mod:`skillcompose_view.live`). Every script, style and mesh
+is served by this process: NiceGUI ships Vue, Quasar, ECharts, Mermaid and three.js, and the
+PR2's meshes come from ``example-robot-data``.
+
+A page shows what it cannot read (a vanished run, a broken file, a task that does not load)
+as a one-line message and goes on; nothing a page or its timer raises reaches the browser
+or the terminal as a traceback.
+"""
+
+from __future__ import annotations
+
+import html
+import logging
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlencode
+
+from nicegui import app, ui
+
+from skillcompose.errors import SkillcomposeError
+from skillcompose.registry import Registry
+from skillcompose.task import load_task, parse_settings
+
+from .data import (
+    FSAView,
+    RunSummary,
+    find_runs,
+    mermaid,
+    pid_alive,
+    read_fsa,
+    read_history,
+    read_run,
+)
+from .episode import Episode, run_episode
+from .live import LIVE_SUFFIX, read_live
+
+__all__ = ["ViewerConfig", "build", "fsa_files", "live_files"]
+
+log = logging.getLogger("skillcompose.view")
+
+REFRESH_S = 1.0  # how often the runs page re-reads the run directories
+LIVE_REFRESH_S = 0.25
+MAX_FILES = 500
+COLOURS = ("#2563eb", "#dc2626", "#059669", "#d97706", "#7c3aed", "#0891b2", "#db2777",
+           "#65a30d", "#475569", "#ea580c")
+
+
+@dataclass(frozen=True)
+class ViewerConfig:
+    """What ``skillcompose view`` was asked to show."""
+
+    root: Path  # the folder whose runs, FSA files and live files are listed
+    file: Path | None = None  # an FSA file given on the command line
+    task: str | None = None  # a task module for units, validation and replays
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    label: str = ""  # the root as the command line named it, for the pages to show
+
+
+def fsa_files(config: ViewerConfig) -> list[Path]:
+    """The FSA files the pages offer: the given file, then ``*.fsa.yaml``, ``best.yaml`` and
+    ``best_evolved.yaml`` below the root (hidden folders and the venv skipped)."""
+    out: list[Path] = [config.file] if config.file is not None else []
+    patterns = ("*.fsa.yaml", "best.yaml", "best_evolved.yaml")
+    try:
+        for pattern in patterns:
+            for p in sorted(config.root.rglob(pattern)):
+                rel = p.relative_to(config.root).parts
+                if any(part.startswith(".") for part in rel[:-1]) or p in out:
+                    continue
+                out.append(p)
+                if len(out) >= MAX_FILES:
+                    return out
+    except OSError:
+        pass
+    return out
+
+
+def live_files(root: Path) -> list[Path]:
+    try:
+        return sorted(p for p in root.rglob(f"*{LIVE_SUFFIX}")
+                      if not any(part.startswith(".") for part in
+                                 p.relative_to(root).parts[:-1]))[:MAX_FILES]
+    except OSError:
+        return []
+
+
+def _allowed(config: ViewerConfig, path: Path) -> bool:
+    """Only the given file and files below the root are shown."""
+    try:
+        resolved = path.resolve()
+    except OSError:
+        return False
+    if config.file is not None and resolved == config.file.resolve():
+        return True
+    return resolved.is_relative_to(config.root.resolve())
+
+
+def _safe(where: str, build: Callable[[], None]) -> None:
+    """Run a page part; show what went wrong as one line instead of a traceback."""
+    try:
+        build()
+    except SkillcomposeError as exc:
+        ui.label(f"{where}: {exc}").classes("text-red-700 whitespace-pre-wrap") \
+            .props("data-testid=error")
+    except Exception as exc:
+        log.warning("%s: %s: %s", where, type(exc).__name__, exc)
+        ui.label(f"{where}: unexpected {type(exc).__name__}: {exc}") \
+            .classes("text-red-700").props("data-testid=error")
+
+
+def _header(active: str) -> None:
+    with ui.header().classes("items-center bg-slate-800 py-2 px-4 gap-6"):
+        ui.label("skillcompose view").classes("text-lg font-semibold text-white")
+        for name, url in (("Runs", "/"), ("FSA", "/fsa"), ("Replay", "/replay"),
+                          ("Live", "/live")):
+            link = ui.link(name, url).classes("text-white no-underline text-base")
+            if name == active:
+                link.classes("border-b-2 border-amber-400 font-semibold")
+
+
+def _fmt(value: float | None, digits: int = 4) -> str:
+    return "–" if value is None else f"{value:.{digits}g}"
+
+
+def _task_registry(target: str | None, settings: Mapping[str, Any]) -> tuple[Registry | None,
+                                                                            str]:
+    if not target:
+        return None, ""
+    task = load_task(target, **dict(settings))
+    return task.registry, f"task {task.name}"
+
+
+def _task_of_run(path: Path) -> tuple[str | None, dict[str, Any]]:
+    """The task module and settings of the run directory holding ``path``, if any."""
+    summary = read_run(path.parent, path.parent) if (path.parent / "run.json").is_file() \
+        else None
+    if summary is None or not summary.task_module:
+        return None, {}
+    import json
+
+    try:
+        info = json.loads((path.parent / "run.json").read_text(encoding="utf-8"))
+        settings = info.get("task_settings") or {}
+    except (OSError, ValueError):
+        settings = {}
+    return summary.task_module, dict(settings) if isinstance(settings, dict) else {}
+
+
+# ---------------------------------------------------------------------------------------
+# runs
+# ---------------------------------------------------------------------------------------
+def _run_row(run: RunSummary) -> dict[str, Any]:
+    return {
+        "name": run.name, "task": run.task, "status": run.status,
+        "generations": run.generations, "best": _fmt(run.best),
+        "success": "–" if run.success is None else f"{100 * run.success:.0f}%",
+        "settings": run.settings + (f" ({run.problem})" if run.problem else ""),
+        "seed": "–" if run.seed is None else run.seed,
+        "fsa_url": "/fsa?" + urlencode({"path": f"{run.name}/best.yaml"}),
+        "replay_url": "/replay?" + urlencode({
+            "path": str(run.path / "best.yaml"), "task": run.task_module,
+            "settings": run.task_settings, "seed": 0}),
+    }
+
+
+def _chart_options(runs: list[RunSummary], chosen: set[str]) -> dict[str, Any]:
+    series = []
+    for k, run in enumerate(r for r in runs if r.name in chosen):
+        history = read_history(run.path / "history.jsonl")
+        series.append({
+            "name": run.name, "type": "line", "showSymbol": True, "symbolSize": 5,
+            "color": COLOURS[k % len(COLOURS)],
+            "data": [[h["generation"], h.get("best")] for h in history
+                     if isinstance(h.get("best"), (int, float))],
+        })
+    return {
+        "animation": False,
+        "title": {"text": "best fitness per generation", "left": "center",
+                  "textStyle": {"fontSize": 14}},
+        "tooltip": {"trigger": "axis"},
+        "legend": {"top": 24, "type": "scroll"},
+        "grid": {"left": 60, "right": 30, "top": 60, "bottom": 50},
+        "xAxis": {"type": "value", "name": "generation", "nameLocation": "middle",
+                  "nameGap": 28, "minInterval": 1},
+        "yAxis": {"type": "value", "name": "best fitness", "scale": True},
+        "series": series,
+    }
+
+
+def _runs_page(config: ViewerConfig) -> None:
+    _header("Runs")
+    runs = find_runs(config.root)
+    ui.label(f"Runs under {_shown(config, config.root)}").classes("text-xl font-semibold")
+    count = ui.label("").props("data-testid=run-count").classes("text-slate-600")
+    columns: list[dict[str, Any]] = [
+        {"name": "name", "label": "run", "field": "name", "align": "left", "sortable": True},
+        {"name": "task", "label": "task", "field": "task", "align": "left"},
+        {"name": "status", "label": "status", "field": "status", "align": "left"},
+        {"name": "generations", "label": "generations", "field": "generations"},
+        {"name": "best", "label": "best fitness", "field": "best"},
+        {"name": "success", "label": "fresh success", "field": "success"},
+        {"name": "seed", "label": "seed", "field": "seed"},
+        {"name": "settings", "label": "settings", "field": "settings", "align": "left"},
+    ]
+    table = ui.table(columns=columns, rows=[_run_row(r) for r in runs], row_key="name",
+                     selection="multiple").classes("w-full") \
+        .props("data-testid=runs-table flat bordered dense")
+    table.add_slot("body-cell-status", r"""
+        <q-td :props="props">
+          <q-badge :label="props.value" :color="{running: 'blue', finished: 'green',
+                   interrupted: 'orange'}[props.value] || 'red'" />
+        </q-td>""")
+    table.add_slot("body-cell-name", r"""
+        <q-td :props="props">
+          <span class="font-medium">{{ props.value }}</span>
+          <a :href="props.row.fsa_url" class="text-blue-700 ml-3">FSA</a>
+          <a :href="props.row.replay_url" class="text-blue-700 ml-2">replay</a>
+        </q-td>""")
+    table.selected = [_run_row(r) for r in runs[: len(COLOURS)]]
+    ui.label("Tick runs to compare them on the chart; FSA opens a run's best FSA, replay "
+             "runs it once.") \
+        .classes("text-sm text-slate-500")
+    chart = ui.echart(_chart_options(runs, {r["name"] for r in table.selected})) \
+        .classes("w-full h-96").props("data-testid=fitness-chart")
+    chart.classes("fitness-chart")
+    state: dict[str, Any] = {"key": None}
+
+    def refresh(force: bool = False) -> None:
+        current = find_runs(config.root)
+        chosen = {r["name"] for r in table.selected}
+        key = tuple((r.name, r.status, r.generations, r.best, r.success) for r in current), \
+            tuple(sorted(chosen))
+        count.text = f"{len(current)} run(s)"
+        if key == state["key"] and not force:
+            return
+        state["key"] = key
+        names = {r.name for r in current}
+        table.rows = [_run_row(r) for r in current]
+        table.selected = [row for row in table.selected if row["name"] in names]
+        table.update()
+        chart.options.clear()
+        chart.options.update(_chart_options(current, {r["name"] for r in table.selected}))
+        chart.update()
+
+    table.on_select(lambda _: refresh(force=True))
+    refresh()
+    ui.timer(REFRESH_S, lambda: _safe("runs", refresh))
+
+
+# ---------------------------------------------------------------------------------------
+# FSA files
+# ---------------------------------------------------------------------------------------
+def _yaml_html(view: FSAView) -> str:
+    """The file's lines, numbered; a problem's line is marked and its messages follow it."""
+    by_line: dict[int, list[str]] = {}
+    for p in view.problems:
+        if p.line is not None:
+            by_line.setdefault(p.line, []).append(p.render())
+    out = ['<pre class="yaml-view">']
+    for k, line in enumerate(view.text.splitlines() or [""], start=1):
+        bad = k in by_line
+        cls = "yaml-line bad" if bad else "yaml-line"
+        out.append(f'<span class="{cls}" data-line="{k}"><span class="ln">{k:>4}</span> '
+                   f"{html.escape(line)}</span>")
+        for msg in by_line.get(k, ()):
+            out.append(f'<span class="yaml-problem" data-line="{k}">     ▲ '
+                       f"{html.escape(msg)}</span>")
+    out.append("</pre>")
+    return "".join(out)
+
+
+_STYLE = """
+<style>
+.yaml-view { max-width: 100%; font-size: 12.5px; line-height: 1.45; background: #f8fafc;
+  border: 1px solid #e2e8f0; border-radius: 6px; padding: 8px 0; overflow-x: auto; margin: 0; }
+.yaml-line, .yaml-problem { display: block; padding: 0 10px; white-space: pre; }
+.yaml-line .ln { color: #94a3b8; user-select: none; }
+.yaml-line.bad { background: #fee2e2; }
+.yaml-problem { color: #b91c1c; background: #fef2f2; font-weight: 600; white-space: pre-wrap; }
+.fsa-graph svg { max-width: 100% !important; height: auto; }
+</style>
+"""
+
+
+def _graph_legend() -> None:
+    with ui.row().classes("gap-3 text-xs text-slate-600 items-center"):
+        for text, style in (("start", "border:3px solid #2563eb"),
+                            ("terminal outcome", "background:#ecfdf5;border:1px solid #059669"),
+                            ("unreachable", "background:#e5e7eb;border:1px dashed #9ca3af"),
+                            ("trap (no end reachable)",
+                             "background:#fee2e2;border:2px solid #dc2626"),
+                            ("active", "background:#fde047;border:3px solid #ca8a04")):
+            with ui.row().classes("items-center gap-1"):
+                ui.html(f'<span style="display:inline-block;width:14px;height:14px;'
+                        f'border-radius:3px;{style}"></span>', sanitize=False)
+                ui.label(text)
+
+
+def _fsa_page(config: ViewerConfig, path: str, task: str) -> None:
+    _header("FSA")
+    ui.add_head_html(_STYLE)
+    files = fsa_files(config)
+    chosen = Path(path) if path else (files[0] if files else None)
+    if chosen is not None and not chosen.is_absolute():
+        chosen = config.root / chosen
+    options = {str(f): _rel(config, f) for f in files}
+    if chosen is not None:
+        options.setdefault(str(chosen), _rel(config, chosen))
+    with ui.row().classes("items-center gap-4 w-full"):
+        ui.select(options, value=str(chosen) if chosen else None, label="FSA file",
+                  on_change=lambda e: ui.navigate.to(
+                      "/fsa?" + urlencode({"path": e.value, "task": task}))) \
+            .classes("min-w-[28rem]").props("data-testid=fsa-select")
+    if chosen is None:
+        ui.label(f"No FSA file under {_shown(config, config.root)} (files named *.fsa.yaml "
+                 "or best.yaml).")
+        return
+    if not _allowed(config, chosen):
+        ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
+                 "files there") \
+            .classes("text-red-700").props("data-testid=error")
+        return
+
+    def build() -> None:
+        target, settings = (task or config.task), dict(config.settings)
+        if not target:
+            target, settings = _task_of_run(chosen)
+        try:
+            registry, what = _task_registry(target, settings)
+        except SkillcomposeError as exc:
+            registry, what = None, ""
+            ui.label(f"task {target}: {exc}").classes("text-orange-700")
+        view = read_fsa(chosen, registry, what)
+        _fsa_body(view, _shown(config, view.path))
+
+    _safe(_shown(config, chosen), build)
+
+
+def _shown(config: ViewerConfig, path: Path) -> str:
+    """``path`` as the person named it: below the root as given on the command line."""
+    try:
+        rel = path.resolve().relative_to(config.root.resolve())
+    except (ValueError, OSError):
+        return str(path)
+    if not config.label:
+        return str(path)
+    return str(Path(config.label) / rel) if rel.parts else config.label
+
+
+def _rel(config: ViewerConfig, path: Path) -> str:
+    try:
+        return str(path.relative_to(config.root))
+    except ValueError:
+        return str(path)
+
+
+def _fsa_body(view: FSAView, shown: str) -> None:
+    fsa = view.fsa
+    with ui.row().classes("w-full no-wrap gap-6 items-start"):
+        with ui.column().classes("w-3/5 min-w-0 gap-2"):
+            if view.problems:
+                with ui.card().classes("w-full bg-red-50").props("data-testid=problems"):
+                    ui.label(f"{len(view.problems)} problem(s) in {view.path.name}") \
+                        .classes("font-semibold text-red-800")
+                    for p in view.problems:
+                        ui.label(p.render(shown)).classes("text-sm text-red-800") \
+                            .props("data-testid=problem")
+            if fsa is not None:
+                ui.label(f"{fsa.name}: {len(fsa.states)} states, start {fsa.start}, "
+                         f"terminals {', '.join(fsa.terminals)}, step limit {fsa.step_limit}") \
+                    .classes("font-semibold").props("data-testid=fsa-summary")
+                if view.checked_against:
+                    ui.label(f"valid; {view.checked_against}").classes("text-sm text-green-700")
+                for names, what in ((view.unreachable, "unreachable from the start (never "
+                                     "run)"), (view.traps, "trap: no terminal outcome "
+                                               "reachable (a run ends in timeout)")):
+                    if names:
+                        ui.label(f"{', '.join(names)}: {what}").classes(
+                            "text-sm text-orange-700").props("data-testid=flag")
+                _graph_legend()
+                ui.mermaid(mermaid(fsa, params={r.name: r.params for r in view.rows},
+                                   unreachable=view.unreachable, traps=view.traps)) \
+                    .classes("fsa-graph w-full").props("data-testid=fsa-graph")
+                _states_table(view)
+        with ui.column().classes("w-2/5 min-w-0"):
+            ui.label(shown).classes("text-sm text-slate-600")
+            ui.html(_yaml_html(view), sanitize=False).classes("w-full") \
+                .props("data-testid=yaml")
+
+
+def _states_table(view: FSAView) -> None:
+    rows = [{"state": r.name, "skill": r.skill, "params": "; ".join(r.params) or "–",
+             "transitions": "; ".join(r.transitions), "flags": ", ".join(r.flags)}
+            for r in view.rows]
+    ui.table(columns=[
+        {"name": c, "label": c, "field": c, "align": "left"}
+        for c in ("state", "skill", "params", "transitions", "flags")
+    ], rows=rows, row_key="state").classes("w-full").props("dense flat bordered wrap-cells "
+                                                           "data-testid=states-table")
+
+
+# ---------------------------------------------------------------------------------------
+# replay
+# ---------------------------------------------------------------------------------------
+def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str,
+                 backend: str) -> None:
+    _header("Replay")
+    files = fsa_files(config)
+    chosen = path or (str(files[0]) if files else "")
+    if chosen and not Path(chosen).is_absolute():
+        chosen = str(config.root / chosen)
+    target = task or config.task or ""
+    if not target and chosen:
+        target = _task_of_run(Path(chosen))[0] or ""
+    setting_text = settings or ", ".join(f"{k}={v}" for k, v in config.settings.items())
+    with ui.row().classes("items-end gap-4 w-full"):
+        file_in = ui.select({str(f): _rel(config, f) for f in files} | (
+            {chosen: chosen} if chosen and chosen not in {str(f) for f in files} else {}),
+            value=chosen or None, label="FSA file").classes("min-w-[24rem]")
+        task_in = ui.input("task module", value=target).classes("w-56") \
+            .props("data-testid=task-input")
+        set_in = ui.input("settings (name=value, ...)", value=setting_text).classes("w-56")
+        backend_in = ui.input("backend", value=backend, placeholder="the task's").classes("w-36")
+        seed_in = ui.number("seed", value=int(seed) if seed.isdigit() else 0, min=0,
+                            precision=0).classes("w-24")
+
+        def go() -> None:
+            ui.navigate.to("/replay?" + urlencode({
+                "path": file_in.value or "", "task": task_in.value or "",
+                "seed": int(seed_in.value or 0), "settings": set_in.value or "",
+                "backend": backend_in.value or ""}))
+
+        ui.button("Run", on_click=go).props("data-testid=run-button")
+    if not (chosen and target):
+        ui.label("Choose an FSA file and a task module (e.g. examples.pour_water), then Run.")
+        return
+    if not _allowed(config, Path(chosen)):
+        ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
+                 "files there") \
+            .classes("text-red-700").props("data-testid=error")
+        return
+
+    def build() -> None:
+        pairs = [s.strip() for s in setting_text.split(",") if s.strip()]
+        episode = run_episode(Path(chosen), target, int(seed_in.value or 0),
+                              parse_settings(pairs), backend=backend.strip() or None)
+        _episode_view(episode)
+
+    _safe("replay", build)
+
+
+def _episode_view(ep: Episode) -> None:
+    n = len(ep.frames) - 1
+    ui.label(f"{ep.path.name} on task {ep.task}, backend {ep.backend}, seed {ep.seed}: "
+             f"{ep.outcome} after {ep.steps} step(s)").classes("font-semibold") \
+        .props("data-testid=episode-summary")
+    pos = {"k": 0}
+    with ui.row().classes("items-center gap-2 w-full"):
+        first = ui.button(icon="first_page", on_click=lambda: show(0)) \
+            .props("flat data-testid=first").tooltip("the world before the first step")
+        back = ui.button("back", icon="chevron_left", on_click=lambda: show(pos["k"] - 1)) \
+            .props("data-testid=back")
+        fwd = ui.button("forward", on_click=lambda: show(pos["k"] + 1)) \
+            .props("icon-right=chevron_right data-testid=forward")
+        last = ui.button(icon="last_page", on_click=lambda: show(n)) \
+            .props("flat data-testid=last").tooltip("the last step")
+        slider = ui.slider(min=0, max=max(n, 1), value=0,
+                           on_change=lambda e: show(int(e.value))).classes("w-64")
+        step_label = ui.label("").classes("text-base").props("data-testid=step-label")
+    active_label = ui.label("").classes("hidden").props("data-testid=active-state")
+    robot: Callable[[Mapping[str, Any] | None], None] | None = None
+    with ui.row().classes("w-full no-wrap gap-6 items-start"):
+        with ui.column().classes("w-2/5" if ep.kinematic else "w-1/2"):
+            graph = ui.mermaid(mermaid(ep.fsa, active=ep.fsa.start)) \
+                .classes("fsa-graph w-full").props("data-testid=replay-graph")
+        with ui.column().classes("w-3/5 gap-2" if ep.kinematic else "w-1/2 gap-2"):
+            if ep.kinematic:
+                robot = _robot_scene(ep)
+            else:
+                changes, board = _step_tables()
+    if ep.kinematic:
+        with ui.row().classes("w-full no-wrap gap-6 items-start"):
+            changes, board = _step_tables(half=True)
+
+    def show(k: int) -> None:
+        k = max(0, min(n, k))
+        pos["k"] = k
+        f = ep.frames[k]
+        if f.state is None:
+            text = f"step 0 of {n}: the world before the first step; start {ep.fsa.start}"
+            active = ep.fsa.start
+        else:
+            text = f"step {k} of {n}: {f.state} ({f.skill}) → {f.outcome} → {f.target}"
+            active = f.state
+        step_label.text = text
+        active_label.text = active or ""
+        graph.set_content(mermaid(ep.fsa, active=active))
+        changes.rows = [{"key": key, "before": a, "after": b}
+                        for key, (a, b) in f.changes.items()]
+        board.rows = [{"key": key, "value": v} for key, v in f.blackboard.items()]
+        if slider.value != k:
+            slider.value = k
+        for b, on in ((first, k > 0), (back, k > 0), (fwd, k < n), (last, k < n)):
+            b.set_enabled(on)
+        if robot is not None:
+            robot(f.robot)
+
+    show(0)
+
+
+def _step_tables(half: bool = False) -> tuple[Any, Any]:
+    """The tables of what a step changed and of the blackboard after it."""
+    tables = []
+    for title, cols, testid in (("changed in this step", ("key", "before", "after"), "changes"),
+                                ("blackboard after this step", ("key", "value"), "blackboard")):
+        with ui.column().classes("w-1/2 gap-1" if half else "w-full gap-1"):
+            ui.label(title).classes("font-semibold")
+            tables.append(ui.table(columns=[
+                {"name": c, "label": c, "field": c, "align": "left"} for c in cols],
+                rows=[], row_key="key").classes("w-full")
+                .props(f"dense flat bordered wrap-cells data-testid={testid}"))
+    return tables[0], tables[1]
+
+
+def _robot_scene(ep: Episode) -> Callable[[Mapping[str, Any] | None], None]:
+    """The PR2, table and objects in 3D; returns the function that poses them for a frame."""
+    from .robot3d import pieces
+
+    ui.label("the PR2, the table and the objects (drag to turn, scroll to zoom)") \
+        .classes("font-semibold")
+    scene = ui.scene(width=820, height=620, grid=(4, 16), background_color="#f1f5f9") \
+        .props("data-testid=robot-scene")
+    objects: list[Any] = []
+    boxes: dict[str, Any] = {}
+    with scene:
+        for piece in pieces():
+            obj: Any
+            if piece.kind == "mesh":
+                obj = scene.stl(f"/pr2-meshes/{piece.mesh}").scale(*piece.scale)
+            elif piece.kind == "box":
+                obj = scene.box(piece.size[0], piece.size[1], piece.size[2])
+            else:
+                obj = scene.cylinder(piece.size[0], piece.size[0], piece.size[1])
+            objects.append(obj.material(piece.colour))
+    scene.move_camera(x=-0.35, y=-1.45, z=1.45, look_at_x=0.45, look_at_y=0.0,
+                      look_at_z=0.7, duration=0.0)
+
+    def pose(frame: Mapping[str, Any] | None) -> None:
+        if frame is None:
+            return
+        for obj, (p, rot) in zip(objects, frame["poses"], strict=True):
+            obj.move(*p).rotate_R(rot)
+        for b in frame["boxes"]:
+            if b.name not in boxes:
+                with scene:
+                    colour = "#a16207" if "table" in b.name else "#16a34a"
+                    boxes[b.name] = scene.box(b.size[0], b.size[1], b.size[2]) \
+                        .material(colour, opacity=0.85).with_name(f"box:{b.name}")
+            boxes[b.name].move(*b.centre).rotate(0.0, 0.0, b.yaw)
+
+    return pose
+
+
+# ---------------------------------------------------------------------------------------
+# live
+# ---------------------------------------------------------------------------------------
+def _live_page(config: ViewerConfig) -> None:
+    _header("Live")
+    ui.label(f"FSAs publishing their state under {_shown(config, config.root)} "
+             f"(files *{LIVE_SUFFIX})") \
+        .classes("text-xl font-semibold")
+    ui.label("A program publishes with skillcompose_view.live.LivePublisher; try "
+             "python -m examples.live_patrol --out DIR.").classes("text-sm text-slate-500")
+    holder = ui.column().classes("w-full gap-4")
+    cards: dict[Path, dict[str, Any]] = {}
+    empty: dict[str, Any] = {"label": None}
+
+    def refresh() -> None:
+        paths = live_files(config.root)
+        if not paths and empty["label"] is None:
+            with holder:
+                empty["label"] = ui.label("No live file yet; this page updates by itself.") \
+                    .props("data-testid=no-live")
+        for path in paths:
+            record = read_live(path)
+            if record is None:
+                continue
+            if empty["label"] is not None:
+                empty["label"].delete()
+                empty["label"] = None
+            card = cards.get(path)
+            if card is None:
+                card = cards[path] = _live_card(holder, config, path)
+            card["update"](record)
+        for gone in [p for p in cards if p not in paths]:
+            cards.pop(gone)["card"].delete()
+
+    refresh()
+    ui.timer(LIVE_REFRESH_S, lambda: _safe("live", refresh))
+
+
+def _live_card(holder: Any, config: ViewerConfig, path: Path) -> dict[str, Any]:
+    from skillcompose.fsafile import loads_fsa
+
+    with holder, ui.card().classes("w-full").props(f"data-testid=live-card data-file={path.name}") \
+            as card:
+        title = ui.label(_rel(config, path)).classes("font-semibold")
+        status = ui.label("").props("data-testid=live-status")
+        active = ui.label("").classes("hidden").props("data-testid=live-active")
+        with ui.row().classes("w-full no-wrap gap-6 items-start"):
+            graph = ui.mermaid("flowchart TD\n  wait[waiting]").classes("fsa-graph w-1/2") \
+                .props("data-testid=live-graph")
+            board = ui.table(columns=[{"name": c, "label": c, "field": c, "align": "left"}
+                                      for c in ("key", "value")], rows=[], row_key="key") \
+                .classes("w-1/2").props("dense flat bordered")
+    memo: dict[str, Any] = {"text": None, "fsa": None, "shown": None}
+
+    def update(record: dict[str, Any]) -> None:
+        if record.get("fsa") != memo["text"]:
+            memo["text"] = record.get("fsa")
+            try:
+                memo["fsa"] = loads_fsa(str(memo["text"]), str(path))
+            except SkillcomposeError as exc:
+                memo["fsa"] = None
+                status.text = f"its FSA cannot be read: {exc}"
+        fsa = memo["fsa"]
+        if fsa is None:
+            return
+        state, done, outcome = record.get("state"), record.get("done"), record.get("outcome")
+        steps = record.get("steps", 0)
+        title.text = f"{record.get('name', fsa.name)} ({_rel(config, path)}), process " \
+            f"{record.get('pid')}"
+        skill = fsa.states[state].skill if state in fsa.states else "?"
+        pid = record.get("pid")
+        gone = not done and isinstance(pid, int) and not pid_alive(pid)
+        status.text = (f"ended: {outcome} after {steps} step(s)" if done else
+                       f"stopped: process {pid} is gone; it was in {state} ({skill}) after "
+                       f"{steps} step(s)" if gone else
+                       f"running: {state} ({skill}), {steps} step(s) done")
+        active.text = str(state if not done else outcome)
+        shown = (state, done, outcome)
+        if shown != memo["shown"]:
+            memo["shown"] = shown
+            graph.set_content(mermaid(fsa, active=None if done else state,
+                                      ended=outcome if done else None))
+        bb = record.get("blackboard") or {}
+        board.rows = [{"key": k, "value": str(v)} for k, v in bb.items()]
+
+    return {"card": card, "update": update}
+
+
+# ---------------------------------------------------------------------------------------
+def build(config: ViewerConfig) -> None:
+    """Register the pages (and the PR2's meshes as static files) for ``config``."""
+    @ui.page("/", title="skillcompose view: runs")
+    def runs_page() -> None:
+        _safe("runs", lambda: _runs_page(config))
+
+    @ui.page("/fsa", title="skillcompose view: FSA")
+    def fsa_page(path: str = "", task: str = "") -> None:
+        _safe("FSA", lambda: _fsa_page(config, path, task))
+
+    @ui.page("/replay", title="skillcompose view: replay")
+    def replay_page(path: str = "", task: str = "", seed: str = "0", settings: str = "",
+                    backend: str = "") -> None:
+        _safe("replay", lambda: _replay_page(config, path, task, seed, settings, backend))
+
+    @ui.page("/live", title="skillcompose view: live")
+    def live_page() -> None:
+        _safe("live", lambda: _live_page(config))
+
+    try:
+        from .robot3d import mesh_root
+    except ImportError:  # pragma: no cover - Pinocchio is a dependency of skillcompose
+        return
+    try:
+        app.add_static_files("/pr2-meshes", mesh_root())
+    except Exception as exc:
+        print(f"skillcompose view: the PR2's meshes cannot be served: {exc}", file=sys.stderr)

@@ -1,0 +1,104 @@
+"""``skillcompose view``: the web viewer's subcommand (registered through the runtime CLI's
+hook for other packages; the runtime's heavy modules and the web libraries load only when
+the command runs, so ``skillcompose --help`` stays light)."""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import ipaddress
+import socket
+import sys
+from pathlib import Path
+from typing import Any
+
+from skillcompose.arguments import UsageError, module_or_file, setting, whole
+
+__all__ = ["DEFAULT_PORT", "handle", "register_cli"]
+
+DEFAULT_PORT = 8765
+DESCRIPTION = """\
+Start a local web app that shows runs, FSA files, replays and live FSAs:
+
+  Runs    every run directory (run.json) under DIR: task, settings, status, generations,
+          best fitness, fresh-episode success; the fitness history, updated as it is written
+  FSA     an FSA file as a graph (skills, parameters with units and ranges, outcomes,
+          start, terminals, unreachable and trap states) beside its YAML and its problems
+  Replay  one episode (task, settings, seed) stepped forward and back; the PR2 in 3D on a
+          kinematic task
+  Live    FSAs that publish their state as they run (skillcompose_view.live)
+
+It listens on 127.0.0.1 unless --host says otherwise; Ctrl-C stops it.
+"""
+
+
+def _host(text: str) -> str:
+    if text == "localhost":
+        return "127.0.0.1"
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an IP address; give one such as 127.0.0.1 (this machine only)"
+        ) from None
+
+
+def register_cli(subparsers: Any) -> None:
+    """Add ``view`` to the ``skillcompose`` command."""
+    p = subparsers.add_parser(
+        "view", help="web viewer: runs, FSA graphs, replays, live FSAs",
+        description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("path", nargs="?", default=".", metavar="DIR|FILE",
+                   help="a folder of runs and FSA files, or one FSA file (default: .)")
+    p.add_argument("--task", type=module_or_file, metavar="TASK",
+                   help="a task module: units and ranges of parameters, checks, replays")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   dest="settings", type=setting, help="a task setting; repeatable")
+    p.add_argument("--port", type=whole(1, 65535), default=DEFAULT_PORT,
+                   help=f"port to listen on (default {DEFAULT_PORT})")
+    p.add_argument("--host", type=_host, default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1, this machine only)")
+    p.set_defaults(func=handle)
+
+
+def _check_port(host: str, port: int) -> None:
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host, port))
+        except OSError as exc:
+            why = "is in use" if exc.errno == errno.EADDRINUSE else \
+                f"cannot be opened ({exc.strerror})"
+            raise UsageError(f"--port {port}: {host}:{port} {why}; choose another --port")\
+                from None
+
+
+def handle(args: argparse.Namespace) -> int:
+    path = Path(args.path)
+    if not path.exists():
+        raise UsageError(f"{args.path}: no such file or folder; give a folder of runs or an "
+                         "FSA file")
+    file = path if path.is_file() else None
+    root = (path.parent if file is not None else path).resolve()
+    from skillcompose.task import parse_settings  # the runtime loads here, not for --help
+
+    settings = parse_settings(args.settings)
+    _check_port(args.host, args.port)
+
+    from nicegui import ui  # the web libraries load here, not when the parser is built
+
+    from .app import ViewerConfig, build
+
+    label = str(path.parent if file is not None else path)
+    build(ViewerConfig(root=root, file=file.resolve() if file else None, task=args.task,
+                       settings=settings, label=label))
+    url_host = f"[{args.host}]" if ":" in args.host else args.host
+    page = "/fsa" if file is not None else "/"
+    print(f"skillcompose view: serving {label} on http://{url_host}:{args.port}{page} "
+          "(Ctrl-C stops it)", flush=True)
+    ui.run(host=args.host, port=args.port, reload=False, show=False,
+           title="skillcompose view", show_welcome_message=False, dark=False,
+           uvicorn_logging_level="warning", favicon="🤖")
+    print("skillcompose view: stopped", file=sys.stderr)
+    return 0

@@ -1,0 +1,159 @@
+"""The viewer's data layer, its live publisher, the live example and the ``view`` command's
+usage errors: no browser, no server."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from examples import live_patrol
+from skillcompose import load_fsa
+from skillcompose.cli import main
+from skillcompose_view.data import find_runs, mermaid, read_fsa, read_history
+from skillcompose_view.episode import run_episode
+from skillcompose_view.live import LivePublisher, read_live
+
+from .conftest import REPO, child_env
+
+POUR = REPO / "examples" / "pour_water_reference.fsa.yaml"
+
+
+def write_run(path: Path, info: dict[str, object], generations: int) -> None:
+    path.mkdir(parents=True)
+    (path / "run.json").write_text(json.dumps(info))
+    with (path / "history.jsonl").open("w") as f:
+        for g in range(generations):
+            f.write(json.dumps({"generation": g, "best": 1.0 / (g + 1)}) + "\n")
+
+
+def test_history_skips_a_line_being_written(tmp_path: Path) -> None:
+    h = tmp_path / "history.jsonl"
+    h.write_text('{"generation": 0, "best": 2}\n{"generation": 1, "best": 1}\n{"genera')
+    assert [r["generation"] for r in read_history(h)] == [0, 1]
+    assert read_history(tmp_path / "missing.jsonl") == []
+
+
+def test_runs_and_their_status(tmp_path: Path) -> None:
+    done = {"task": "t", "result": {"best_fitness": 0.25, "fresh": {"success_rate": 0.9}}}
+    write_run(tmp_path / "a" / "finished", done, 4)
+    write_run(tmp_path / "running", {"task": "t"}, 2)
+    (tmp_path / "running" / ".lock").write_text(f"{os.getpid()}\n")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    write_run(tmp_path / "stopped", {"task": "t"}, 3)
+    (tmp_path / "stopped" / ".lock").write_text(f"{dead.pid}\n")
+    (tmp_path / "torn").mkdir()
+    (tmp_path / "torn" / "run.json").write_text('{"task": ')
+    runs = {r.name: r for r in find_runs(tmp_path)}
+    assert {n: r.status for n, r in runs.items()} == {
+        "a/finished": "finished", "running": "running", "stopped": "interrupted",
+        "torn": "unreadable"}
+    assert (runs["a/finished"].best, runs["a/finished"].success) == (0.25, 0.9)
+    assert runs["a/finished"].generations == 4
+    assert runs["running"].best == 0.5  # the last generation's, while it runs
+    assert "not a JSON object" in runs["torn"].problem
+
+
+def test_read_fsa_gives_problems_with_lines(tmp_path: Path) -> None:
+    text = POUR.read_text().replace("success: Grasp", "success: Grsap", 1)
+    bad = tmp_path / "bad.fsa.yaml"
+    bad.write_text(text)
+    view = read_fsa(bad)
+    line = text.splitlines().index("      success: Grsap") + 1
+    assert view.fsa is None and view.error_lines == (line,)
+    missing = read_fsa(tmp_path / "gone.yaml")
+    assert missing.problems[0].message == "file not found"
+
+
+def test_mermaid_marks_start_terminals_traps_and_active() -> None:
+    fsa = load_fsa(POUR)
+    text = mermaid(fsa, active="Grasp", traps=["Pour"], unreachable=["Check"])
+    ids = {s: f"s{k}" for k, s in enumerate(fsa.states)}
+    assert f"class {ids['Recognise']} start" in text
+    assert f"class {ids['Grasp']} active" in text
+    assert f"class {ids['Pour']} trap" in text and f"class {ids['Check']} unreachable" in text
+    assert text.count("-->") == sum(len(set(st.transitions.values()))
+                                    for st in fsa.states.values())
+
+
+def test_episode_is_the_traced_run() -> None:
+    from skillcompose import load_task
+
+    task = load_task("examples.pour_water")
+    trial = next(iter(task.each_trial(task.compile(load_fsa(POUR)), 5, 1, trace_first=True)))
+    episode = run_episode(POUR, "examples.pour_water", 5)
+    assert trial.result.trace is not None
+    assert [f.state for f in episode.frames[1:]] == [ev.state for ev in trial.result.trace]
+    assert episode.outcome == trial.result.outcome and not episode.kinematic
+
+
+def test_episode_on_another_backend_is_checked() -> None:
+    from skillcompose.errors import SkillcomposeError
+
+    with pytest.raises(SkillcomposeError, match="--backend 'nonsense': no loaded skill"):
+        run_episode(POUR, "examples.pour_water", 0, backend="nonsense")
+
+
+def test_live_patrol_publishes_each_state(tmp_path: Path,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    states = []
+    original = LivePublisher.publish
+
+    def spy(self: LivePublisher, run: object, bb: object = None) -> bool:
+        wrote = original(self, run, bb)  # type: ignore[arg-type]
+        if wrote:
+            record = read_live(self.path)
+            assert record is not None
+            states.append(record["state"] or record["outcome"])
+        return wrote
+
+    monkeypatch.setattr(LivePublisher, "publish", spy)
+    assert live_patrol.run(tmp_path, time_scale=0.02) == "success"
+    record = read_live(tmp_path / "live_patrol.live.json")
+    assert record is not None and record["done"] and record["steps"] == 7
+    shown = [s for k, s in enumerate(states) if k == 0 or states[k - 1] != s]
+    assert shown == ["Drive", "Scan"] * 3 + ["Dock", "success"]
+    assert load_fsa_text(record["fsa"]).states.keys() == {"Drive", "Scan", "Dock"}
+
+
+def load_fsa_text(text: str) -> object:
+    from skillcompose.fsafile import loads_fsa
+
+    return loads_fsa(text)
+
+
+def test_live_file_name_is_checked(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"must end in \.live\.json"):
+        LivePublisher(tmp_path / "x.json", live_patrol.patrol_fsa())
+
+
+def test_view_usage_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                        ) -> None:
+    assert main(["view", str(tmp_path / "nothing")]) == 2
+    assert "no such file or folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["view", "--host", "example", str(tmp_path)])
+    assert exc.value.code == 2
+    assert "is not an IP address" in capsys.readouterr().err
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        assert main(["view", str(tmp_path), "--port", str(port)]) == 2
+    err = capsys.readouterr().err
+    assert f"--port {port}" in err and "in use" in err and "Traceback" not in err
+
+
+def test_core_does_not_import_the_viewer() -> None:
+    code = ("import sys, skillcompose, skillcompose.cli; skillcompose.cli.build_parser(); "
+            "print(sorted(m for m in sys.modules if m.startswith(('nicegui', "
+            "'skillcompose_view.app'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env=child_env()).stdout
+    assert out.strip() == "[]"
