@@ -390,12 +390,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="a smoke test: the maze and Santa Fe, 2 seeds, tiny budgets")
     p.add_argument("--only", action="append", default=[], metavar="NAME",
                    help="only the benchmarks whose name contains NAME (repeatable)")
-    p.add_argument("--out", default=str(ROOT / "docs" / "results"),
-                   help="output folder (default docs/results)")
+    p.add_argument("--out", default=None,
+                   help="output folder (default docs/results; --quick needs one)")
     args = p.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)
     if args.seeds < 1 or args.workers < 1:
         p.error("--seeds and --workers must be at least 1")
+    if args.quick and args.out is None:
+        p.error("--quick measures nothing worth keeping: give --out DIR (not docs/results)")
+    args.out = args.out or str(ROOT / "docs" / "results")
     benches = [b for b in BENCHES if args.full or not b.full_only]
     if args.only:
         benches = [b for b in benches if any(s in b.name for s in args.only)]
