@@ -8,8 +8,8 @@ The public API; examples and user code import from here::
 
 from __future__ import annotations
 
-import ast
 import importlib
+import re
 import sys
 import types
 from pathlib import Path
@@ -78,14 +78,12 @@ else:
     # skillcompose import FSA`` imports skillcompose.fsa), so that importing one module of the
     # package (``skillcompose --help`` imports skillcompose.cli) does not load the whole runtime
     # and numpy. The names and their modules are read from the imports above, which only the
-    # type checker runs.
+    # type checker runs (one ``from .module import Name as Name`` a line, as isort keeps them).
     _HOMES = {
-        alias.name: f".{node.module}"
-        for block in ast.parse(Path(__file__).read_text(encoding="utf-8")).body
-        if isinstance(block, ast.If)
-        for node in block.body
-        if isinstance(node, ast.ImportFrom)
-        for alias in node.names
+        name: f".{module}"
+        for module, name in re.findall(
+            r"^    from \.(\w+) import (\w+) as \2$", Path(__file__).read_text("utf-8"), re.M
+        )
     }
     __all__ = [*_HOMES, "__version__"]
 
