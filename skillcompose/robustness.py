@@ -55,6 +55,8 @@ from .errors import SkillcomposeError, clip
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from .task import Task, TaskRef
 
 # numpy and the runtime (executor, files, tasks) are imported where they are used, so that
@@ -209,18 +211,21 @@ class _Chunk:
     task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
 
 
-def _run_chunk(job: _Chunk) -> tuple[list[float], list[int], Counter[str], int]:
+def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     """Repetitions ``start..stop-1`` at one value: fitness, steps, outcome counts, solved."""
+    import numpy as np
+
     from .executor import compile_fsa
 
     task = _build(job.ref, job.setting, job.value)
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
         compile_fsa(job.fsa, task.registry, job.backend or task.backend)
-    runs = [(t.fitness, t.result) for t in
-            task.each_trial(compiled, job.seed, job.stop - job.start, start=job.start)]
-    fit = [f for f, _ in runs]
-    return (fit, [r.steps for _, r in runs], Counter(r.outcome for _, r in runs),
-            sum(map(task.solved, fit)))
+    n = job.stop - job.start
+    fit, steps, counts = np.empty(n), np.empty(n, dtype=np.int64), Counter[str]()
+    for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n, start=job.start)):
+        fit[k], steps[k] = f, result.steps
+        counts[result.outcome] += 1
+    return fit, steps, counts, sum(task.solved(f) for f in fit.tolist())
 
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
