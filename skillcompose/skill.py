@@ -14,10 +14,6 @@ A *long-running* skill (a grasp, a base move) is declared the same way, as eithe
 - a generator function ``f(bb, rng, *, params...) -> Generator[str, None, Literal[...]]``
   that yields ``"running"`` (or nothing) until it returns its outcome; cancelling it closes
   the generator, so its ``finally:`` blocks are its cancel hook.
-
-The engine (:mod:`skillcompose.executor`) asks each skill how it starts (:meth:`Skill.starter`,
-:meth:`Skill.bind`, :meth:`Skill.cancel_hook`); subclasses (nested FSAs, py_trees subtrees)
-override these, so the engine never asks what kind a skill is.
 """
 
 from __future__ import annotations
@@ -111,9 +107,9 @@ class Skill:
     This class is the function kind; each other kind (:class:`InstanceSkill`,
     :class:`TickingSkill`, :class:`GeneratorSkill`, nested FSAs, py_trees subtrees) is a
     subclass that says how it runs through :meth:`starter`, :meth:`bind` and
-    :meth:`cancel_hook`. Calling a ``Skill`` runs it once with the blackboard's access
-    limited to its declared keys, which is handy in tests: ``move_to_object(bb, rng,
-    approach=0.2)``.
+    :meth:`cancel_hook`, so the engine never asks what kind a skill is. Calling a ``Skill``
+    runs it once with the blackboard's access limited to its declared keys, which is handy
+    in tests: ``move_to_object(bb, rng, approach=0.2)``.
     """
 
     __slots__ = ("backend", "impl", "spec")
