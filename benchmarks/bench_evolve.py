@@ -15,9 +15,11 @@ pool (identical runs); (3) over 10 seeds, generations and wall time to solve.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -27,6 +29,7 @@ from evolve import (
     EvolutionConfig,
     Job,
     ProcessEvaluator,
+    RayEvaluator,
     SerialEvaluator,
     SkillSet,
     evolve,
@@ -80,6 +83,108 @@ def cpu_ceiling(workers: int, seconds: float) -> tuple[int, int]:
     return blocks(1), blocks(workers)
 
 
+def _spin(stop: Any) -> None:
+    while not stop.is_set():
+        s = 0
+        for i in range(10000):
+            s += i * i % 7
+
+
+@contextlib.contextmanager
+def busy_core() -> Iterator[None]:
+    """One CPU-bound process (not pinned, normal priority) running in the background, as
+    another user's work on a shared machine; stopped on leaving."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    stop = ctx.Event()
+    proc = ctx.Process(target=_spin, args=(stop,), daemon=True)
+    proc.start()
+    try:
+        time.sleep(0.2)
+        yield
+    finally:
+        stop.set()
+        proc.join(timeout=5)
+        if proc.is_alive():
+            proc.kill()
+            proc.join()
+
+
+def throughput(
+    serial: SerialEvaluator, evaluators: dict[str, Any], jobs: list[Job], rounds: int,
+    workers: int, ceiling_s: float,
+) -> tuple[float, dict[str, tuple[float, list[float]]], tuple[float, float]]:
+    """Each round evaluates ``jobs`` serially, then on each evaluator (checking the
+    fitnesses are the serial ones), then measures the CPU loop's ceiling. Returns the best
+    serial time, per evaluator its best time and its per-round speed-ups, and the
+    ceiling's best and median."""
+    serial.evaluate(jobs)  # warm up, and start the workers
+    for ev in evaluators.values():
+        ev.evaluate(jobs)
+    t_serial: list[float] = []
+    times: dict[str, list[float]] = {name: [] for name in evaluators}
+    ceilings = []
+    for _ in range(rounds):
+        t = time.perf_counter()
+        expected = serial.evaluate(jobs)
+        t_serial.append(time.perf_counter() - t)
+        for name, ev in evaluators.items():
+            t = time.perf_counter()
+            got = ev.evaluate(jobs)
+            times[name].append(time.perf_counter() - t)
+            if got != expected:
+                raise SystemExit(f"{name}: fitnesses differ from the serial ones")
+        ceilings.append(cpu_ceiling(workers, ceiling_s))
+    rows = {name: (min(ts), [s / t for s, t in zip(t_serial, ts, strict=True)])
+            for name, ts in times.items()}
+    best = max(many for _, many in ceilings) / max(one for one, _ in ceilings)
+    return min(t_serial), rows, (best, statistics.median(m / o for o, m in ceilings))
+
+
+@contextlib.contextmanager
+def _pool_options(**options: Any) -> Iterator[None]:
+    """Have ``evolve()``'s process pool made with ``options`` (the old defaults, to compare
+    them with the current ones in the same run)."""
+    if not options:
+        yield
+        return
+    from unittest import mock
+
+    import evolve.evaluation as evaluation
+
+    made = evaluation.ProcessEvaluator
+    with mock.patch.object(evaluation, "ProcessEvaluator",
+                           lambda *a, **k: made(*a, **{**k, **options})):
+        yield
+
+
+PRIVATE_NET = ["unshare", "--net", "sh", "-c", 'ip link set lo up && exec "$@"', "sh"]
+_IN_PRIVATE_NET = "SKILLCOMPOSE_BENCH_PRIVATE_NET"
+
+
+@contextlib.contextmanager
+def ray_cluster(task: Any, skills: SkillSet, nodes: int) -> Iterator[RayEvaluator]:
+    """A Ray evaluator on a local cluster of ``nodes`` nodes of one CPU each, started here
+    and stopped on leaving."""
+    from evolve.ray_local import local_cluster
+
+    with local_cluster(nodes) as cluster:
+        os.environ.update(cluster.env)  # before Ray is imported: it reads them then
+        os.environ["RAY_ADDRESS"] = cluster.address
+        import ray
+
+        try:
+            ev = RayEvaluator(task, skills)
+            try:
+                yield ev
+            finally:
+                ev.close()
+        finally:
+            ray.shutdown()
+            del os.environ["RAY_ADDRESS"]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -90,16 +195,38 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=15,
                     help="back-to-back serial/pool pairs for the throughput")
+    ap.add_argument("--no-busy", action="store_true",
+                    help="skip the rows measured beside a background CPU-bound process")
+    ap.add_argument("--ray", action="store_true",
+                    help="add a row on a local Ray cluster of --workers nodes of 1 CPU each, "
+                    "started and stopped by this script")
+    ap.add_argument("--no-solve", action="store_true",
+                    help="skip the time to solve over seeds")
     ap.add_argument("--throughput-only", action="store_true",
                     help="print the throughput table only, not the time to solve")
     args = ap.parse_args(argv)
+    if args.ray and not os.environ.get(_IN_PRIVATE_NET):
+        # the cluster listens on ports: run in a network namespace of our own (loopback
+        # only), so nothing of it can be reached from elsewhere
+        import shutil
+        import subprocess
+        import sys
+
+        if shutil.which("unshare") is None or subprocess.run(
+                [*PRIVATE_NET, "true"], capture_output=True, check=False).returncode:
+            raise SystemExit("bench_evolve.py --ray: needs a private network namespace "
+                             "(unshare --net, run as root); run without --ray")
+        argv = sys.argv[1:] if argv is None else argv
+        env = {**os.environ, _IN_PRIVATE_NET: "1"}
+        return subprocess.run([*PRIVATE_NET, sys.executable, __file__, *argv], env=env,
+                              check=False).returncode
     settings = parse_settings(args.settings)
     task = load_task(args.task, **settings)
     quick = args.quick
 
     # 1. throughput: the same jobs (one generation of random genomes) evaluated serially and
-    # on the pool, back to back, many times; this machine's speed drifts by up to 2x over
-    # seconds, so each pair is compared on its own and the median ratio is reported
+    # on each parallel evaluator, back to back, many times; this machine's speed drifts by up
+    # to 2x over seconds, so each round is compared on its own and the median ratio reported
     skills = SkillSet.from_task(task)
     rng = np.random.default_rng(0)
     population = 100 if quick else 300
@@ -107,43 +234,46 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [Job.of(initialize(skills, rng, 12), 0, (1, 0, i), trials)
             for i in range(population)]
     episodes = population * trials
-    serial = SerialEvaluator(task, skills)
-    pool = ProcessEvaluator(task, skills, workers=args.workers)
     pairs = 3 if quick else args.repeats
     ceiling_s = 0.05 if quick else 0.1
-    t_serial, t_pool, ceilings = [], [], []
-    try:
-        pool.evaluate(jobs)  # start the workers and warm both up
-        serial.evaluate(jobs)
-        for _ in range(pairs):
-            t = time.perf_counter()
-            a = serial.evaluate(jobs)
-            t_serial.append(time.perf_counter() - t)
-            t = time.perf_counter()
-            b = pool.evaluate(jobs)
-            t_pool.append(time.perf_counter() - t)
-            if a != b:
-                raise SystemExit("the pool's fitnesses differ from the serial ones")
-            ceilings.append(cpu_ceiling(args.workers, ceiling_s))
-    finally:
-        pool.close()
-    ratios = [ts / tp for ts, tp in zip(t_serial, t_pool, strict=True)]
-    loop_ratios = [many / one for one, many in ceilings]
-    speedup = min(t_serial) / min(t_pool)
-    ceiling = max(many for _, many in ceilings) / max(one for one, _ in ceilings)
     print(f"Evaluation throughput, task {task.name}: {population} random genomes of 12 nodes, "
-          f"{trials} trials each ({episodes} episodes), {pairs} back-to-back pairs\n")
-    print(f"{'':34} {'evaluations/s (best)':>21} {'speed-up (best)':>16} "
-          f"{'speed-up (median of pairs)':>27}")
-    print(f"{'serial':34} {episodes / min(t_serial):21,.0f} {1.0:15.2f}x {1.0:26.2f}x")
-    print(f"{f'process pool, {args.workers} workers':34} {episodes / min(t_pool):21,.0f} "
-          f"{speedup:15.2f}x {statistics.median(ratios):26.2f}x")
-    print(f"{f'CPU loop, {args.workers} processes (ceiling)':34} {'':>21} "
-          f"{ceiling:15.2f}x {statistics.median(loop_ratios):26.2f}x")
-    print(f"\nspeed-up per pair: {', '.join(f'{r:.2f}' for r in ratios)}\n"
-          f"ceiling per pair:  {', '.join(f'{c:.2f}' for c in loop_ratios)}\n"
-          f"best of {pairs}: pool {speedup:.2f}x = {speedup / ceiling:.0%} of the ceiling "
-          f"{ceiling:.2f}x; target >= 1.80x with {args.workers} workers\n")
+          f"{trials} trials each ({episodes} episodes), {pairs} back-to-back rounds; "
+          f"this machine has {os.cpu_count()} cores, shared with whatever else runs on it\n")
+    conditions = [("idle", False)] + ([] if args.no_busy else [("busy", True)])
+    for label, busy in conditions:
+        evaluators: dict[str, Any] = {
+            f"process pool, {args.workers} workers": ProcessEvaluator(
+                task, skills, workers=args.workers),
+            f"pool, {args.workers} pinned": ProcessEvaluator(
+                task, skills, workers=args.workers, pin=True),
+            f"pool, {args.workers} pinned at nice 10 (old)": ProcessEvaluator(
+                task, skills, workers=args.workers, pin=True, nice=10),
+        }
+        if args.ray and not busy:
+            evaluators[f"Ray, local cluster of {args.workers} nodes"] = "ray"
+        with contextlib.ExitStack() as stack:
+            if "ray" in evaluators.values():
+                key = next(k for k, v in evaluators.items() if v == "ray")
+                evaluators[key] = stack.enter_context(ray_cluster(task, skills, args.workers))
+            for ev in evaluators.values():
+                stack.callback(ev.close)
+            if busy:
+                stack.enter_context(busy_core())
+            t_serial, rows, (ceiling_best, ceiling_median) = throughput(
+                SerialEvaluator(task, skills), evaluators, jobs, pairs, args.workers, ceiling_s)
+        title = ("as the machine is" if not busy else
+                 "with one background CPU-bound process (nice 0, not pinned) running")
+        print(f"{label}: {title}\n")
+        print(f"{'':38} {'evaluations/s (best)':>21} {'speed-up (best)':>16} "
+              f"{'speed-up (median of rounds)':>28} {'of ceiling':>11}")
+        print(f"{'serial':38} {episodes / t_serial:21,.0f} {1.0:15.2f}x {1.0:27.2f}x")
+        for name, (t_best, ratios) in rows.items():
+            speedup = t_serial / t_best
+            median = statistics.median(ratios)
+            print(f"{name:38} {episodes / t_best:21,.0f} {speedup:15.2f}x {median:27.2f}x "
+                  f"{speedup / ceiling_best:10.0%}")
+        print(f"{f'CPU loop, {args.workers} processes (ceiling)':38} {'':>21} "
+              f"{ceiling_best:15.2f}x {ceiling_median:27.2f}x\n")
 
     if args.throughput_only:
         return 0
@@ -152,28 +282,40 @@ def main(argv: list[str] | None = None) -> int:
     # evaluates each child as it is born, so breeding overlaps evaluation)
     whole_gens = 5 if quick else 25
     runs = 2 if quick else 5
+    backends: dict[str, dict[str, Any]] = {"serial": {}, "pool": {},
+                                           "old pool": {"pin": True, "nice": 10}}
     print(f"Whole runs, {whole_gens} generations from seed 1000 (no simplification), "
-          f"best of {runs} interleaved runs each\n")
-    print(f"{'preset':8} {'population x trials':>19} {'serial s':>9} "
-          f"{f'pool ({args.workers}) s':>10} {'speed-up':>9}")
+          f"best of {runs} interleaved runs each; pool: {args.workers} workers, old pool: "
+          f"pinned at nice 10\n")
+    print(f"{'preset':8} {'machine':6} {'population x trials':>19} {'serial s':>9} "
+          f"{'pool s':>7} {'old pool s':>11} {'speed-up':>9} {'old':>6}")
     for name in ("paper", "robust"):
         cfg = EvolutionConfig(**{**PRESETS[name], "generations": whole_gens})
-        whole_walls: dict[str, list[float]] = {"serial": [], "process": []}
-        histories: dict[str, list[tuple[float, ...]]] = {}
-        for _ in range(runs):
-            for backend in ("serial", "process"):
-                t = time.perf_counter()
-                r = evolve(task, cfg, seed=1000, backend=backend,
-                           workers=1 if backend == "serial" else args.workers,
-                           simplify_result=False)
-                whole_walls[backend].append(time.perf_counter() - t)
-                histories[backend] = [(h.best, h.mean, h.total_evaluations) for h in r.history]
-        if histories["serial"] != histories["process"]:
-            raise SystemExit(f"preset {name}: the pool's run differs from the serial one")
-        s, p = min(whole_walls["serial"]), min(whole_walls["process"])
-        shape = f"{cfg.population} x {cfg.trials or task.trials}"
-        print(f"{name:8} {shape:>19} {s:9.2f} {p:10.2f} {s / p:8.2f}x")
+        for label, busy in conditions:
+            walls: dict[str, list[float]] = {b: [] for b in backends}
+            histories: dict[str, list[tuple[float, ...]]] = {}
+            with busy_core() if busy else contextlib.nullcontext():
+                for _ in range(runs):
+                    for backend, options in backends.items():
+                        t = time.perf_counter()
+                        with _pool_options(**options):
+                            r = evolve(task, cfg, seed=1000,
+                                       backend="serial" if backend == "serial" else "process",
+                                       workers=1 if backend == "serial" else args.workers,
+                                       simplify_result=False)
+                        walls[backend].append(time.perf_counter() - t)
+                        histories[backend] = [(h.best, h.mean, h.total_evaluations)
+                                              for h in r.history]
+            if any(h != histories["serial"] for h in histories.values()):
+                raise SystemExit(f"preset {name}: a pool's run differs from the serial one")
+            s, p, o = (min(walls[b]) for b in backends)
+            shape = f"{cfg.population} x {cfg.trials or task.trials}"
+            print(f"{name:8} {label:6} {shape:>19} {s:9.2f} {p:7.2f} {o:11.2f} "
+                  f"{s / p:8.2f}x {s / o:5.2f}x")
     print()
+
+    if args.no_solve:
+        return 0
 
     # 3. time to solve, over seeds, with the paper's settings and with our robust preset
     seeds = 3 if quick else args.seeds
@@ -183,15 +325,17 @@ def main(argv: list[str] | None = None) -> int:
           f"{'wall time median (max)':>24}")
     for name in ("paper", "robust"):
         cfg = EvolutionConfig(**{**PRESETS[name], "generations": budget})
-        gens, walls, solved = [], [], 0
+        gens: list[int] = []
+        times: list[float] = []
+        solved = 0
         for seed in range(seeds):
             r = evolve(task, cfg, seed=seed, simplify_result=False)
             solved += r.solved
             gens.append(r.generations if r.solved else budget)
-            walls.append(r.wall_time)
+            times.append(r.wall_time)
         print(f"{name:8} {f'{solved}/{seeds}':>7} "
               f"{f'{statistics.median(gens):g} ({min(gens)}-{max(gens)})':>30} "
-              f"{f'{statistics.median(walls):.1f} s ({max(walls):.1f} s)':>24}")
+              f"{f'{statistics.median(times):.1f} s ({max(times):.1f} s)':>24}")
     return 0
 
 

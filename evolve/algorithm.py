@@ -979,7 +979,7 @@ def _evolve(
     if not solved and (fitness is None or run.generation < cfg.generations):
         limits = EvalLimits(cfg.eval_time_limit, cfg.worker_max_jobs, cfg.worker_max_growth_mb)
         run.evaluator = make_evaluator(backend, task, skills, workers, cfg.chunks_per_worker,
-                                       limits)
+                                       limits, islands=cfg.islands)
         try:
             while not solved and (fitness is None or run.generation < cfg.generations):
                 children = run.breed(fitness, bred) if fitness is not None else None

@@ -92,9 +92,9 @@ class EvolutionConfig:
 
     Run bookkeeping: ``checkpoint_every`` generations between checkpoints of a run directory,
     ``terminal_weight`` the weight of each terminal outcome against one state when an edge
-    target is drawn at random (see docs/evolve.md), ``chunks_per_worker`` how many
-    submissions each Ray actor gets per generation (a process pool's workers claim guided
-    chunks from a shared counter instead).
+    target is drawn at random (see docs/evolve.md), ``chunks_per_worker`` the sizes of
+    the chunks sent to Ray actors (each takes ``1 / (chunks_per_worker * actors)`` of what is
+    left; a process pool's workers claim guided chunks from a shared counter instead).
     """
 
     population: int = 300

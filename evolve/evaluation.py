@@ -35,6 +35,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from multiprocessing.reduction import ForkingPickler
+from pathlib import Path
 from types import FrameType
 from typing import Any, NamedTuple, Protocol, cast
 
@@ -61,6 +62,7 @@ __all__ = [
     "evaluate_genome",
     "evaluate_job",
     "make_evaluator",
+    "ray_runtime_env",
 ]
 
 BACKENDS = EVALUATION_BACKENDS  # where evaluations run (defined with the settings)
@@ -523,7 +525,7 @@ _PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 def _worker_main(
     conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...], cpu: int | None,
     counter: Any, shared: _Shared, slot: int, limits: EvalLimits, parent_pid: int = 0,
-    inherited: Sequence[int] = (),
+    inherited: Sequence[int] = (), nice: int = 0,
 ) -> None:
     """A worker process: build the task, say so, then serve batches until told to stop.
 
@@ -538,11 +540,12 @@ def _worker_main(
     """
     if parent_pid:
         _die_with_parent(parent_pid, inherited)
-    if cpu is not None:  # one worker per core: measured 1.2x -> 1.4x on 2 cores
+    if cpu is not None:
         with contextlib.suppress(OSError, AttributeError):
             os.sched_setaffinity(0, {cpu})
-    with contextlib.suppress(OSError, AttributeError):
-        os.nice(10)
+    if nice:
+        with contextlib.suppress(OSError, AttributeError):
+            os.nice(nice)
     try:
         task, compiler = _init_worker(source, terminals)
     except BaseException:
@@ -614,12 +617,14 @@ class ProcessEvaluator:
 
     def __init__(
         self, task: Task, skills: SkillSet, workers: int | None = None,
-        limits: EvalLimits | None = None,
+        limits: EvalLimits | None = None, pin: bool = False, nice: int = 0,
     ) -> None:
         self.task = task
         self.workers = workers or os.cpu_count() or 1
         self.terminals = skills.terminals
         self.limits = limits or EvalLimits()
+        self.pin = pin
+        self.nice = nice
         methods = multiprocessing.get_all_start_methods()
         if task.ref is None and "fork" not in methods:
             raise EvolutionError(
@@ -654,7 +659,7 @@ class ProcessEvaluator:
 
     def _spawn(self, slot: int) -> _Worker:
         parent, child = self._ctx.Pipe()
-        cpu = self._cpus[self._spawned % len(self._cpus)] if self._cpus else None
+        cpu = self._cpus[self._spawned % len(self._cpus)] if self._cpus and self.pin else None
         self._spawned += 1
         self._shared.running[slot] = -1
         # with fork, the worker inherits the parent's ends of all pipes: it closes them
@@ -664,7 +669,7 @@ class ProcessEvaluator:
             target=_worker_main,
             args=(child, self._source, self.terminals, cpu, self._counter, self._shared,
                   slot, self.limits, os.getpid(),
-                  inherited if self._ctx.get_start_method() == "fork" else []),
+                  inherited if self._ctx.get_start_method() == "fork" else [], self.nice),
             daemon=True,
         )
         proc.start()
@@ -880,23 +885,107 @@ class ProcessEvaluator:
         self._pool = []
 
 
+_PROJECT_PACKAGES = ("skillcompose", "skills", "robots", "evolve")
+
+
+def _installed(path: str) -> bool:
+    """Whether a module at ``path`` comes with the interpreter or an installed distribution
+    (which a cluster's nodes are expected to have, like numpy), not from user code."""
+    import sysconfig
+
+    parts = Path(path).resolve().parts
+    if "site-packages" in parts or "dist-packages" in parts:
+        return True
+    stdlib = Path(sysconfig.get_paths()["stdlib"]).resolve()
+    return Path(path).resolve().is_relative_to(stdlib)
+
+
+def ray_runtime_env(task: Task) -> tuple[dict[str, Any], TaskRef]:
+    """What a Ray cluster's workers need to rebuild ``task``, shipped through Ray's runtime
+    environment rather than installed on the nodes: this project's packages, the task's
+    module and the modules its skills come from (each top-level package, or a single-file
+    module, that is not part of an installed distribution), as ``py_modules``. A task
+    loaded from a ``.py`` path ships that file's directory as the ``working_dir`` and is
+    rebuilt there by module name. Returns the runtime environment and the reference the
+    workers rebuild the task from."""
+    if task.ref is None:
+        raise EvolutionError(
+            f"backend 'ray' rebuilds task {task.name} in each actor from its module: "
+            "load the task with skillcompose.task.load_task(module, **settings)"
+        )
+    ref = task.ref
+    env: dict[str, Any] = {}
+    names: list[str] = list(_PROJECT_PACKAGES)
+    module = ref.module
+    if module.endswith(".py") or "/" in module or "\\" in module:
+        path = Path(module).resolve()
+        env["working_dir"] = str(path.parent)
+        ref = TaskRef(path.stem, dict(ref.settings))
+    else:
+        names.append(module.split(".", 1)[0])
+    for name in task.registry:
+        for backend in task.registry.backends(name):
+            impl = getattr(task.registry.resolve(name, backend), "impl", None)
+            owner = getattr(impl, "__module__", None) or ""
+            if owner and not owner.startswith("_skillcompose_user_"):
+                names.append(owner.split(".", 1)[0])
+    modules: list[str] = []
+    for top in dict.fromkeys(names):
+        found = sys.modules.get(top)
+        if found is None:
+            continue
+        paths = list(getattr(found, "__path__", []))
+        where = paths[0] if len(paths) == 1 else getattr(found, "__file__", None)
+        if where and (top in _PROJECT_PACKAGES or not _installed(where)):
+            modules.append(where)
+    env["py_modules"] = modules
+    return env, ref
+
+
+class _Actor:
+    """A Ray actor of a :class:`RayEvaluator`, the node it runs on, and its calls in flight
+    (oldest first: the first one is running, the others wait behind it)."""
+
+    def __init__(self, handle: Any, node: str) -> None:
+        self.handle = handle
+        self.node = node
+        self.calls: list[tuple[Any, int, list[Job], bool]] = []  # ref, position, jobs, alone
+        self.since = 0.0  # when its first call in flight started (roughly: sent or freed)
+        self.retiring = False  # served its jobs or memory: replaced once its calls are done
+
+
 class RayEvaluator:
     """Ray actors, each holding the task built once from its module and settings.
 
-    Needs the optional extra: ``pip install skillcompose[ray]``. Connects to a running
-    cluster when ``RAY_ADDRESS`` is set, else starts a local one.
+    Needs the optional extra: ``pip install skillcompose[ray]``. Connects to the cluster at
+    ``RAY_ADDRESS`` when it is set, else starts a local one, and ships the task's code to
+    the workers through Ray's runtime environment (:func:`ray_runtime_env`; pass
+    ``runtime_env`` to give your own), and disconnects on :meth:`close`. When Ray is
+    already initialised, the caller's connection and runtime environment stand.
 
-    As on the process pool, an actor that dies is replaced and the jobs of its chunks are
-    run again one by one, each on a fresh actor, so only a job that kills its actor by
-    itself scores worst. With a wall-clock limit, an actor whose chunk overruns what its
-    jobs' limits allow is killed and its chunk run again job by job, each job given the
-    limit (a job that overruns it alone scores worst as a time-out). Actors are replaced
-    after ``max_jobs`` jobs or ``max_growth_mb`` of memory growth.
+    Each actor takes one CPU of the cluster (``workers``: by default every CPU), spread
+    over the nodes. Jobs go out in guided chunks (each a ``1 / chunks_per_worker`` share of
+    what is left, so large first and small last) to whichever actor is free, each actor
+    holding at most two, so a slow or busy node simply does less.
+    ``nodes`` gives, for the last call, the node each job was evaluated on. With ``groups``
+    set to k > 1 (islands: the population in k equal runs), group i's jobs go to the actors
+    of the i-th node (mod the number of nodes) first, and to others only when those have
+    nothing left (which runs where never changes a result).
+
+    An actor that dies (its job crashed it, or its node went down) is replaced, and the
+    jobs of the chunk it was running are run again one by one; only a job that kills the
+    actor it runs on alone, twice, scores worst (``lost``): so a node lost in the middle of
+    a run costs the run no result. An actor that cannot be placed (no free CPU left) is
+    waited for while the others go on. With a wall-clock limit, an actor whose chunk
+    overruns what its jobs' limits allow is killed and that chunk run again job by job,
+    each job given the limit (a job that overruns it alone scores worst as a time-out).
+    Actors are replaced after ``max_jobs`` jobs or ``max_growth_mb`` of memory growth.
     """
 
     def __init__(
         self, task: Task, skills: SkillSet, workers: int | None = None,
         chunks_per_worker: int = 4, limits: EvalLimits | None = None,
+        runtime_env: dict[str, Any] | None = None, start_timeout: float = 120.0,
     ) -> None:
         try:
             import ray
@@ -905,114 +994,236 @@ class RayEvaluator:
                 "backend 'ray' needs Ray: pip install skillcompose[ray] "
                 "(or use --backend process)"
             ) from exc
-        if task.ref is None:
-            raise EvolutionError(
-                f"backend 'ray' rebuilds task {task.name} in each actor from its module: "
-                "load the task with skillcompose.task.load_task(module, **settings)"
-            )
+        env, self._ref = ray_runtime_env(task)
         self._ray: Any = ray
-        if not ray.is_initialized():
-            ray.init(ignore_reinit_error=True, log_to_driver=False)
+        self._owns_ray = not ray.is_initialized()  # then closed with this evaluator
+        if self._owns_ray:
+            ray.init(ignore_reinit_error=True, log_to_driver=False,
+                     runtime_env=env if runtime_env is None else runtime_env)
         self.task = task
-        self.workers = workers or int(ray.available_resources().get("CPU", 1)) or 1
+        self.workers = workers or int(ray.cluster_resources().get("CPU", 1)) or 1
         self.chunks_per_worker = chunks_per_worker
         self.limits = limits or EvalLimits()
-        self._actor_cls = ray.remote(_RayWorker)
-        self._ref = task.ref
+        self.start_timeout = start_timeout
+        self._actor_cls = ray.remote(num_cpus=1, scheduling_strategy="SPREAD")(_RayWorker)
         self._terminals = skills.terminals
-        self._actors = [self._new_actor(ready=False) for _ in range(self.workers)]
-        ray.get([a.ready.remote() for a in self._actors])
+        self._actors: list[_Actor] = []
+        self._starting: dict[Any, Any] = {}  # ready ref -> actor handle
         self.lost = 0
         self.faults = Faults()
+        self.nodes: list[str] = []
+        self.groups = 1
+        try:
+            for _ in range(self.workers):
+                self._start_actor()
+            self._await_actors(wait_all=True)
+        except BaseException:
+            self.close()
+            raise
 
-    def _new_actor(self, ready: bool = True) -> Any:
-        actor: Any = self._actor_cls.remote(self._ref, self._terminals, self.limits)
-        if ready:  # built: its start does not count against a job's time
-            self._ray.get(actor.ready.remote())
-        return actor
+    def _start_actor(self) -> None:
+        handle: Any = self._actor_cls.remote(self._ref, self._terminals, self.limits)
+        self._starting[handle.ready.remote()] = handle
 
-    def _renew(self, a: int) -> None:
-        with contextlib.suppress(Exception):
-            self._ray.kill(self._actors[a])
-        self._actors[a] = self._new_actor()
+    def _await_actors(self, wait_all: bool = False, timeout: float = 0.0) -> None:
+        """Take in the actors that have started: all of them, up to ``start_timeout``, when
+        ``wait_all``; else the first within ``timeout`` (0: those there now). Having waited,
+        fail when there is none."""
+        ray = self._ray
+        waits = wait_all or timeout > 0
+        deadline = time.monotonic() + (self.start_timeout if wait_all else timeout)
+        while self._starting:
+            left = max(0.0, deadline - time.monotonic())
+            done, _ = ray.wait(list(self._starting), num_returns=1, timeout=left)
+            if not done:
+                break
+            handle = self._starting.pop(done[0])
+            try:
+                node = ray.get(done[0])
+            except ray.exceptions.RuntimeEnvSetupError as exc:
+                self._discard_starting()
+                raise EvolutionError(
+                    f"Ray could not set up the workers' runtime environment for task "
+                    f"{self.task.name}: {str(exc).strip().splitlines()[-1]}"
+                ) from exc
+            except Exception as exc:
+                self._discard_starting()
+                raise EvolutionError(
+                    f"a Ray actor could not build task {self.task.name}: "
+                    f"{str(exc).strip()[-800:]}"
+                ) from exc
+            self._actors.append(_Actor(handle, node))
+            if not wait_all:
+                deadline = time.monotonic()  # take what has started, without waiting more
+        if not self._actors and waits:
+            self._discard_starting()
+            raise EvolutionError(
+                f"no Ray actor started in {self.start_timeout:g} s: the cluster has no free "
+                "CPU (see `ray status`), or use fewer --workers"
+            )
+
+    def _discard_starting(self) -> None:
+        for handle in self._starting.values():
+            with contextlib.suppress(Exception):
+                self._ray.kill(handle)
+        self._starting = {}
+
+    def _drop(self, actor: _Actor, kill: bool) -> None:
+        """Take ``actor`` out of the pool (killing it) and start a replacement."""
+        if kill:
+            with contextlib.suppress(Exception):
+                self._ray.kill(actor.handle)
+        self._actors.remove(actor)
+        self._start_actor()
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]:
         ray = self._ray
         jobs = list(jobs)
         faults = Faults()
         self.faults = faults
+        self.nodes = []
         if not jobs:
             return []
-        out = [math.nan] * len(jobs)
-        codes = [0] * len(jobs)
+        n = len(jobs)
+        out = [math.nan] * n
+        codes = [0] * n
+        nodes = [""] * n
         errors: list[tuple[int, str]] = []
-        chunks = _chunks(jobs, self.workers * self.chunks_per_worker)
-        starts = [sum(len(c) for c in chunks[:k]) for k in range(len(chunks))]
+        singles: list[int] = []  # positions to run alone, after their actor died
+        crashed: dict[int, int] = {}  # position -> actors it killed running alone
+        again: list[tuple[int, list[Job]]] = []  # chunks sent to an actor that died first
         per_job = self.limits.kill_after
-        t0 = time.monotonic()
-        queued = [0] * len(self._actors)  # jobs sent to each actor so far
-        refs = []
-        for k, c in enumerate(chunks):
-            a = k % len(self._actors)
-            queued[a] += len(c)
-            deadline = None if per_job is None else queued[a] * per_job
-            refs.append((a, self._actors[a].run.remote(c, starts[k]), deadline))
-        again: list[int] = []
-        broken: set[int] = set()  # actors found dead or killed in this call
-        for k, (a, ref, deadline) in enumerate(refs):
-            if a in broken:  # chunks queued behind a dead actor: run them job by job
-                again += range(starts[k], starts[k] + len(chunks[k]))
-                continue
-            try:
-                wait_s = None if deadline is None else max(0.0, t0 + deadline - time.monotonic())
-                fitness, chunk_codes, error, worn = ray.get(ref, timeout=wait_s)
-            except Exception as exc:  # the actor died (RayActorError) or overran its time
-                broken.add(a)
-                if not isinstance(exc, ray.exceptions.GetTimeoutError):
-                    faults.worker_deaths += 1
-                again += range(starts[k], starts[k] + len(chunks[k]))
-                continue
-            out[starts[k]:starts[k] + len(fitness)] = fitness
-            codes[starts[k]:starts[k] + len(fitness)] = chunk_codes
-            if error is not None:
-                errors.append(error)
-            if worn:
-                broken.add(a)
-                faults.recycled += 1
-        for a in sorted(broken):
-            self._renew(a)
-        for p in again:  # each job alone on a sound actor
-            actor = self._actors[0]
-            try:
-                fitness, chunk_codes, error, worn = ray.get(
-                    actor.run.remote([jobs[p]], p), timeout=per_job
-                )
-            except Exception as exc:
-                if isinstance(exc, ray.exceptions.GetTimeoutError):
-                    out[p], codes[p] = self.task.worst, TIMED_OUT
-                else:
-                    faults.worker_deaths += 1
-                    out[p], codes[p] = self.task.worst, LOST
+        tick = 1.0 if per_job is None else min(1.0, per_job / 4)
+
+        # the jobs in ``groups`` equal runs (islands), group k at home on the k-th node (mod
+        # their number): an actor takes from its own node's groups first, then from any
+        homes = sorted({a.node for a in self._actors})
+        groups = max(1, min(self.groups, n))
+        spans = [[k * n // groups, (k + 1) * n // groups] for k in range(groups)]  # next, end
+        home = [homes[k % len(homes)] if groups > 1 and homes else "" for k in range(groups)]
+
+        def next_work(actor: _Actor) -> tuple[int, list[Job], bool] | None:
+            if singles:
+                p = singles.pop(0)
+                return p, [jobs[p]], True
+            if again:
+                return (*again.pop(0), False)
+            own = [k for k in range(groups) if home[k] in ("", actor.node)]
+            for k in own + [k for k in range(groups) if k not in own]:
+                start, end = spans[k]
+                if start < end:
+                    workers = sum(a.node == home[k] for a in self._actors) if home[k] else \
+                        len(self._actors)
+                    share = self.chunks_per_worker * max(1, workers)
+                    size = max((end - k * n // groups) // (8 * share) or 1,
+                               math.ceil((end - start) / share))
+                    spans[k][0] = min(end, start + size)
+                    return start, jobs[start:spans[k][0]], False
+            return None
+
+        def feed(actor: _Actor) -> None:
+            while not actor.retiring and len(actor.calls) < 2:
+                work = next_work(actor)
+                if work is None:
+                    return
+                p, chunk, alone = work
+                if not actor.calls:
+                    actor.since = time.monotonic()
+                actor.calls.append((actor.handle.run.remote(chunk, p), p, chunk, alone))
+
+        def died(actor: _Actor, killed: bool) -> None:
+            """The actor is gone (or ``killed`` by us for time): keep what it finished,
+            run again what it had not."""
+            unfinished = []
+            for ref, p, chunk, alone in actor.calls:
+                try:
+                    record(actor, p, ray.get(ref, timeout=0))
+                except Exception:
+                    unfinished.append((p, chunk, alone))
+            actor.calls = []
+            if not killed:
+                faults.worker_deaths += 1
+            for k, (p, chunk, alone) in enumerate(unfinished):
+                if k:  # never started: as they were
+                    if alone:
+                        singles.insert(0, p)
+                    else:
+                        again.insert(0, (p, chunk))
+                elif alone and killed:
+                    out[p], codes[p], nodes[p] = self.task.worst, TIMED_OUT, actor.node
+                elif alone and crashed.get(p, 0) >= 1:  # it killed a second actor alone
+                    out[p], codes[p], nodes[p] = self.task.worst, LOST, actor.node
                     self.lost += 1
-                self._renew(0)
-                continue
-            out[p], codes[p] = fitness[0], chunk_codes[0]
+                elif alone:
+                    crashed[p] = crashed.get(p, 0) + 1
+                    singles.insert(0, p)
+                else:
+                    singles[:0] = range(p, p + len(chunk))
+            self._drop(actor, kill=killed)
+
+        def record(actor: _Actor, p: int, result: Any) -> None:
+            fitness, chunk_codes, error, worn = result
+            out[p:p + len(fitness)] = fitness
+            codes[p:p + len(fitness)] = chunk_codes
+            nodes[p:p + len(fitness)] = [actor.node] * len(fitness)
             if error is not None:
                 errors.append(error)
-            if worn:
+            if worn and not actor.retiring:
+                actor.retiring = True
                 faults.recycled += 1
-                self._renew(0)
+
+        for actor in self._actors:
+            feed(actor)
+        while True:
+            self._await_actors()
+            for actor in self._actors:
+                feed(actor)
+            calls = {c[0]: a for a in self._actors for c in a.calls}
+            if not calls:
+                if all(a >= b for a, b in spans) and not singles and not again:
+                    break
+                if not self._actors:  # every actor died: wait for a replacement
+                    self._await_actors(timeout=self.start_timeout)
+                continue
+            done, _ = ray.wait(list(calls), num_returns=1, timeout=tick)
+            for ref in done:
+                actor = calls[ref]
+                if actor not in self._actors:  # already handled as dead in this round
+                    continue
+                try:
+                    result = ray.get(ref)
+                except Exception:  # the actor died (RayActorError), or its node did
+                    died(actor, killed=False)
+                    continue
+                k = next(i for i, c in enumerate(actor.calls) if c[0] == ref)
+                _, p, _, _ = actor.calls.pop(k)
+                actor.since = time.monotonic()
+                record(actor, p, result)
+                if actor.retiring and not actor.calls:
+                    self._drop(actor, kill=True)
+            if per_job is not None:
+                now = time.monotonic()
+                for actor in list(self._actors):
+                    if actor.calls and now - actor.since > len(actor.calls[0][2]) * per_job:
+                        with contextlib.suppress(Exception):
+                            ray.kill(actor.handle)
+                        died(actor, killed=True)
         for p, job in enumerate(jobs):
             faults.count(codes[p], job.trials)
         if errors:
             faults.first_error = min(errors)[1]
+        self.nodes = nodes
         return out
 
     def close(self) -> None:
         for a in self._actors:
             with contextlib.suppress(Exception):  # an actor that died already
-                self._ray.kill(a)
+                self._ray.kill(a.handle)
         self._actors = []
+        self._discard_starting()
+        if self._owns_ray:  # its runtime environment was this task's: the next starts anew
+            self._ray.shutdown()
+            self._owns_ray = False
 
 
 class _RayWorker:
@@ -1022,8 +1233,11 @@ class _RayWorker:
         self.guard = Guard(limits.time_limit).install()
         self.recycler = _Recycler(limits)
 
-    def ready(self) -> bool:
-        return True
+    def ready(self) -> str:
+        """The id of the node this actor runs on."""
+        import ray
+
+        return str(ray.get_runtime_context().get_node_id())
 
     def run(
         self, jobs: list[Job], at: int
@@ -1045,12 +1259,15 @@ class _RayWorker:
 
 def make_evaluator(
     backend: str, task: Task, skills: SkillSet, workers: int | None, chunks_per_worker: int = 4,
-    limits: EvalLimits | None = None,
+    limits: EvalLimits | None = None, islands: int = 1,
 ) -> SerialEvaluator | ProcessEvaluator | RayEvaluator:
+    """The evaluator of ``backend``; on Ray, island k's jobs run on the k-th node first."""
     if backend == "serial":
         return SerialEvaluator(task, skills, limits)
     if backend == "process":
         return ProcessEvaluator(task, skills, workers, limits)
     if backend == "ray":
-        return RayEvaluator(task, skills, workers, chunks_per_worker, limits)
+        ray_evaluator = RayEvaluator(task, skills, workers, chunks_per_worker, limits)
+        ray_evaluator.groups = islands
+        return ray_evaluator
     raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
