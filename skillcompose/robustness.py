@@ -320,12 +320,9 @@ def table(rows: Sequence[SweepRow]) -> tuple[list[str], list[list[str]]]:
     outs = [*_FIRST_OUTCOMES, *sorted(rest)]
     header = [rows[0].setting, "reps", "mean", "std", "min", "max", "mean_steps", "solved_rate"]
     header += [f"{o}_rate" for o in outs]
-    body = []
-    for r in rows:
-        cells = [f"{r.value:.10g}", str(r.reps)]
-        cells += [f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps, r.solved_rate)]
-        cells += [f"{r.rate(o):.6g}" for o in outs]
-        body.append(cells)
+    body = [[f"{r.value:.10g}", str(r.reps),
+             *(f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps, r.solved_rate)),
+             *(f"{r.rate(o):.6g}" for o in outs)] for r in rows]
     return header, body
 
 
@@ -337,9 +334,7 @@ def write_csv(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     with p.open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(body)
+        csv.writer(f).writerows([header, *body])
     return p
 
 
