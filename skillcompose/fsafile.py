@@ -174,10 +174,6 @@ def _at(mark: Any, problem: Problem) -> Problem:
     return dataclasses.replace(problem, line=mark.line + 1, column=mark.column + 1)
 
 
-def _mark_problem(mark: Any, message: str, fix: str | None = None) -> Problem:
-    return _at(mark, Problem(message, fix=fix))
-
-
 class _GuardedParser(RoundTripParser):
     """The YAML parser with the format's limits checked on each event, before the
     (recursive) composer builds a node from it.
@@ -213,54 +209,47 @@ class _GuardedParser(RoundTripParser):
         return super().get_event()
 
     def _inspect(self, event: Any) -> None:
-        mark = event.start_mark
-        self.last_mark = mark
-        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
-            self.values += 1
-            if self.values > MAX_VALUES:
-                raise _Refused(_mark_problem(
-                    mark, f"the file holds more than {MAX_VALUES} values (names, numbers, "
-                    "lists and mappings)", fix=f"an FSA file has at most {MAX_STATES} "
-                    "states; split a large FSA into nested FSAs",
-                ))
-        if isinstance(event, CollectionStartEvent):
-            self.depth += 1
-            if self.depth > MAX_DEPTH:
-                raise _Refused(_mark_problem(
-                    mark, f"the data is nested more than {MAX_DEPTH} levels deep",
-                    fix="FSA files are shallow: a state is 4 levels deep; flatten this value",
-                ))
-        elif isinstance(event, CollectionEndEvent):
+        mark = self.last_mark = event.start_mark
+        if isinstance(event, CollectionEndEvent):
             self.depth -= 1
         elif isinstance(event, AliasEvent):
-            raise _Refused(_mark_problem(
-                mark, f"YAML aliases (*{event.anchor}) are not allowed in FSA files",
-                fix="write the value out in full",
-            ))
+            raise _Refused(_at(mark, Problem(
+                f"YAML aliases (*{event.anchor}) are not allowed in FSA files",
+                fix="write the value out in full")))
         elif isinstance(event, DocumentStartEvent):
             version = getattr(event, "version", None)
             if version is not None and tuple(version) != (1, 2):
-                self.problems.append(_mark_problem(
-                    mark, f"%YAML {'.'.join(map(str, version))} documents are not read: "
-                    "FSA files are YAML 1.2", fix="remove the %YAML line",
-                ))
-        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
+                self.problems.append(_at(mark, Problem(
+                    f"%YAML {'.'.join(map(str, version))} documents are not read: "
+                    "FSA files are YAML 1.2", fix="remove the %YAML line")))
+        elif isinstance(event, (ScalarEvent, CollectionStartEvent)):
+            self.values += 1
+            if self.values > MAX_VALUES:
+                raise _Refused(_at(mark, Problem(
+                    f"the file holds more than {MAX_VALUES} values (names, numbers, lists "
+                    f"and mappings)", fix=f"an FSA file has at most {MAX_STATES} states; "
+                    "split a large FSA into nested FSAs")))
+            if isinstance(event, CollectionStartEvent):
+                self.depth += 1
+                if self.depth > MAX_DEPTH:
+                    raise _Refused(_at(mark, Problem(
+                        f"the data is nested more than {MAX_DEPTH} levels deep",
+                        fix="FSA files are shallow: a state is 4 levels deep; flatten this "
+                        "value")))
             if event.anchor is not None:
-                self.problems.append(_mark_problem(
-                    mark, f"YAML anchor &{event.anchor} is not allowed in FSA files",
-                    fix="remove the anchor and write each value out in full",
-                ))
+                self.problems.append(_at(mark, Problem(
+                    f"YAML anchor &{event.anchor} is not allowed in FSA files",
+                    fix="remove the anchor and write each value out in full")))
                 event.anchor = None  # reported: the composer need not keep (or warn about) it
             tag = _tag_text(event.tag)
             kind = ("scalar" if isinstance(event, ScalarEvent) else
                     "seq" if isinstance(event, SequenceStartEvent) else "map")
             if tag and tag != "!" and tag not in _EXPLICIT_TAGS[kind]:
                 allowed = ", ".join(sorted(_short_tag(t) for t in _EXPLICIT_TAGS[kind]))
-                self.problems.append(_mark_problem(
-                    mark, f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
+                self.problems.append(_at(mark, Problem(
+                    f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
                     f"data: no code, and on a {_KIND_NAMES[kind]} only {allowed})",
-                    fix=f"remove {_short_tag(tag)}",
-                ))
+                    fix=f"remove {_short_tag(tag)}")))
 
 
 def _tag_text(tag: Any) -> str:
@@ -545,11 +534,9 @@ class _Reader:
             raise FSAFileError([exc.problem], self.path) from None
         self.raise_if_problems()
         if root is None:
-            self.problems.append(Problem(
+            raise FSAFileError([Problem(
                 "the file is empty", fix="an FSA file needs `format: 1`, `start:` and "
-                "`states:`", line=1, column=1))
-            self.raise_if_problems()
-        assert root is not None
+                "`states:`", line=1, column=1)], self.path)
         self.check_tree(root, yaml.constructor)
         self.raise_if_problems()
         return self.read_format(root)
@@ -562,12 +549,9 @@ class _Reader:
         _check_directives(self.text)
         yaml = YAML(typ="rt")
         yaml.Parser = _GuardedParser
-        parser: _GuardedParser | None = None
+        parser: _GuardedParser = yaml.parser
         try:
-            parser = yaml.parser
             root = yaml.compose(self.text)
-        except _Refused:
-            raise
         except MarkedYAMLError as exc:
             mark = exc.problem_mark or exc.context_mark
             line = mark.line + 1 if mark is not None else 1
@@ -588,7 +572,7 @@ class _Reader:
             )) from None
         except (YAMLError, RecursionError, ValueError, TypeError, LookupError,
                 AttributeError, AssertionError) as exc:  # the YAML library's own slips
-            mark = parser.last_mark if parser is not None else None
+            mark = parser.last_mark
             line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
             raise _Refused(Problem(
                 f"not valid YAML: {type(exc).__name__}: {clip(str(exc), 80)}",
@@ -853,12 +837,6 @@ def _py(value: Any) -> Any:
     return value
 
 
-def _flow_list(items: list[Any]) -> CommentedSeq:
-    seq = CommentedSeq(items)
-    seq.fa.set_flow_style()
-    return seq
-
-
 def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | None:
     if registry is None or skill not in registry:
         return None
@@ -902,7 +880,8 @@ def _set(m: CommentedMap, key: str, value: Any) -> None:
     if key in m and _equal(_py(m[key]), value) and _emits_exactly(m[key]):
         return
     if isinstance(value, list):  # terminals, vector parameters: one line (or a few)
-        value = _flow_list(value)
+        value = CommentedSeq(value)
+        value.fa.set_flow_style()
     m[key] = value
 
 
