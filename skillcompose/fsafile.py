@@ -65,7 +65,7 @@ from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
 from ruamel.yaml.representer import RoundTripRepresenter
 
-from .errors import FSAFileError, FSAValidationError, Problem, clip
+from .errors import FSAFileError, FSAValidationError, ParamError, Problem, UnknownSkillError, clip
 from .files import atomic_write
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step_limit_problem
 from .params import time_limit_problem
@@ -838,13 +838,10 @@ def _py(value: Any) -> Any:
 
 
 def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | None:
-    if registry is None or skill not in registry:
-        return None
     try:
-        spec = registry.spec(skill).param(pname)
-    except Exception:
+        return None if registry is None else registry.spec(skill).param(pname).describe_range()
+    except (UnknownSkillError, ParamError):  # not the registry's: no comment
         return None
-    return spec.describe_range()
 
 
 def _state_map(st: State, registry: Registry | None) -> CommentedMap:
@@ -909,14 +906,21 @@ def _equal(a: Any, b: Any) -> bool:
 
 
 def _rename_key(m: CommentedMap, old: str, new: str) -> None:
-    keys = list(m.keys())
-    pos = keys.index(old)
+    pos = list(m).index(old)
     value = m[old]
     comment = m.ca.items.pop(old, None)
     del m[old]
     m.insert(pos, new, value)
     if comment is not None:
         m.ca.items[new] = comment
+
+
+def _child_map(m: CommentedMap, key: str) -> CommentedMap:
+    """``m[key]``, made an empty mapping first unless it is one."""
+    child = m.get(key)
+    if not isinstance(child, CommentedMap):
+        child = m[key] = CommentedMap()
+    return child
 
 
 def _sync_map(m: CommentedMap, values: Mapping[str, Any]) -> None:
@@ -937,10 +941,7 @@ def _sync_document(
         _set(doc, "step_limit", fsa.step_limit)
     if fsa.terminals != DEFAULT_TERMINALS or "terminals" in doc:
         _set(doc, "terminals", list(fsa.terminals))
-    states = doc.get("states")
-    if not isinstance(states, CommentedMap):
-        states = CommentedMap()
-        doc["states"] = states
+    states = _child_map(doc, "states")
     for old, new in renames.items():
         if old in states and new not in states:
             _rename_key(states, old, new)
@@ -967,11 +968,7 @@ def _sync_state(cur: CommentedMap, st: State) -> None:
             cur.insert(list(cur.keys()).index("skill") + 1 if "skill" in cur else 0,
                        "params", pm)
         _sync_map(pm, st.params)
-    tm = cur.get("transitions")
-    if not isinstance(tm, CommentedMap):
-        tm = CommentedMap()
-        cur["transitions"] = tm
-    _sync_map(tm, st.transitions)
+    _sync_map(_child_map(cur, "transitions"), st.transitions)
     if st.time_limit is not None:
         _set(cur, "time_limit", st.time_limit)
     elif "time_limit" in cur:
