@@ -666,20 +666,19 @@ class _Reader:
                               "`time_limit:`")
         if fields is None:
             return None
-        ok = True
+        # every value below that cannot be read is a problem noted, and read_format raises
+        # them all: a state read in part is never used
         for req in REQUIRED_STATE_KEYS:
             if req not in fields:
                 example = {"skill": "skill: <SkillName>",
                            "transitions": "transitions: {success: <state or terminal>}"}
                 self.fail(node, f"missing key {req!r}", state=sname, key=req,
                           fix=f"add `{example[req]}`")
-                ok = False
         skill = ""
         if "skill" in fields:
             self.mark(("states", sname, "skill"), fields["skill"][1])
             skill = self.string(fields["skill"][1], "skill", state=sname, key="skill",
                                 fix="write the skill's name, e.g. `skill: GraspObject`") or ""
-            ok = ok and bool(skill)
         params: dict[str, Any] = {}
         if "params" in fields:
             pnode = fields["params"][1]
@@ -700,33 +699,24 @@ class _Reader:
                     self.fail(pv, f"parameter {pname!r} must be a single value (number, "
                               "true/false or text) or, for a vector parameter, a flat list "
                               f"of numbers; got {_node_kind(pv)}", state=sname, key=pname)
-                    ok = False
         transitions: dict[str, str] = {}
         if "transitions" in fields:
             self.mark(("states", sname, "transitions"), fields["transitions"][0])
             tmap = self.mapping(fields["transitions"][1], f"state {sname} transitions", None,
                                 state=sname, fix="write `transitions: {outcome: target}`")
-            if tmap is None:
-                ok = False
             for outcome, (_, tv) in (tmap or {}).items():
                 self.mark(("states", sname, "transitions", outcome), tv)
-                target = self.string(tv, f"the target of outcome {outcome!r}", state=sname,
-                                     key=outcome, fix="write a state name or a terminal "
-                                     "outcome such as success")
-                if target is None:
-                    ok = False
-                    continue
-                transitions[outcome] = target
+                transitions[outcome] = self.string(
+                    tv, f"the target of outcome {outcome!r}", state=sname, key=outcome,
+                    fix="write a state name or a terminal outcome such as success") or ""
         time_limit: float | None = None
         if "time_limit" in fields:
             tnode = fields["time_limit"][1]
             self.mark(("states", sname, "time_limit"), tnode)
             value = self.scalar(tnode)
-            if self.report(tnode, time_limit_problem(value, sname)):
-                ok = False
-            else:
+            if not self.report(tnode, time_limit_problem(value, sname)):
                 time_limit = float(value)
-        return State(skill, params, transitions, time_limit) if ok else None
+        return State(skill, params, transitions, time_limit)
 
 
 def _node_kind(node: Node) -> str:
