@@ -335,13 +335,11 @@ class FSA:
         """A straight line of states: each ``success`` goes to the next, the last ends in
         ``success``; every other outcome (known from ``registry``) ends in ``on_other``."""
         names = list(skills)
-        states: dict[str, State] = {}
         labels = [f"{s}_{i + 1}" for i, s in enumerate(names)]
-        for i, s in enumerate(names):
-            nxt = labels[i + 1] if i + 1 < len(names) else "success"
+        states: dict[str, State] = {}
+        for s, label, nxt in zip(names, labels, [*labels[1:], "success"], strict=False):
             outs = registry.spec(s).outcomes if registry is not None else ("success",)
-            tr = {o: (nxt if o == "success" else on_other) for o in outs}
-            states[labels[i]] = State(s, {}, tr)
+            states[label] = State(s, {}, {o: (nxt if o == "success" else on_other) for o in outs})
         return cls(states, labels[0], step_limit=step_limit, name=name)
 
 

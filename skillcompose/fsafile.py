@@ -890,9 +890,7 @@ def _emits_exactly(v: Any) -> bool:
 def _equal(a: Any, b: Any) -> bool:
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
-    return bool(a == b and type(a) is type(b)) or (
-        isinstance(a, (dict, list)) and a == b
-    )
+    return bool(a == b) and (type(a) is type(b) or isinstance(a, (dict, list)))
 
 
 def _rename_key(m: CommentedMap, old: str, new: str) -> None:
