@@ -10,7 +10,9 @@ Randomness: the breeding generator is ``SeedSequence(seed, spawn_key=(0,))``; th
 of individual ``i`` in generation ``g`` come from ``SeedSequence(seed, spawn_key=(1, g, i))``
 (``(1, g)`` for every individual with common random numbers). Nothing depends on which
 worker evaluates what, so a run is the same on any backend and number of workers, and a run
-resumed from a checkpoint is the same as one never interrupted.
+resumed from a checkpoint is the same as one never interrupted. Islands (``islands`` > 1)
+change none of this: they are slices of the one population, bred one after the other from
+the same breeding generator, and migration draws nothing at random.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from .simplify import simplify
 
 __all__ = ["EvolutionResult", "GenerationRecord", "check_fresh", "evolve"]
 
+_RETRIES = 8  # at most this many extra mutations make a duplicate child new
 _PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 _BREED = 0
 _EVAL = 1
@@ -189,6 +192,8 @@ class _Run:
         self.wall_before = 0.0
         self.next_uid = 0
         self.elite_fitness: dict[int, float] = {}
+        # per island: its best rank key so far and the generation it was reached (restarts)
+        self.island_best: list[tuple[float, int]] = []
         self.first_error: str | None = None  # the run's first exception, summarised
         self.gen_faults = Faults()
         self.fault_totals = Faults()  # over the run so far, for the progress line
@@ -217,6 +222,7 @@ class _Run:
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
             "elite_fitness": [[uid, f] for uid, f in self.elite_fitness.items()],
+            "island_best": [[f, since] for f, since in self.island_best],
             "first_error": self.first_error,
             "exported": self.exported,
         }
@@ -246,6 +252,8 @@ class _Run:
             self.wall_before = _number(st["wall_time"])
             self.next_uid = _whole(st["next_uid"])
             self.elite_fitness = {_whole(uid): _number(f) for uid, f in st["elite_fitness"]}
+            self.island_best = [(float(_number(f)), _whole(since))
+                                for f, since in st.get("island_best", [])]
             self.exported = bool(st.get("exported", False))
             first_error = st.get("first_error")
             if first_error is not None and not isinstance(first_error, str):
@@ -350,29 +358,57 @@ class _Run:
     def breed(
         self, fitness: list[float], bred: Callable[[], None] | None = None
     ) -> Iterator[Genome]:
-        """Algorithm 1's next generation, child by child; once all are born it becomes the
-        population and ``bred`` is called (to save a checkpoint)."""
-        cfg, rng, n = self.cfg, self.rng, len(self.population)
-        sizes = [len(g) for g in self.population]
+        """Algorithm 1's next generation, child by child, island by island (one island
+        unless ``islands`` says more); once all are born it becomes the population and
+        ``bred`` is called (to save a checkpoint)."""
+        population, fitness = self.migrate(self.population, fitness)
+        nxt: list[Genome] = []
+        self.elite_fitness = {}
+        seen: set[tuple[Any, ...]] = set()
+        g = self.generation + 1
+        restarts = self.stagnant()
+        for k, (lo, hi) in enumerate(self.island_bounds()):
+            yield from self._breed_island(population[lo:hi], fitness[lo:hi], nxt, hi, g,
+                                          seen, k in restarts)
+        self.population = nxt
+        self.generation = g
+        for k in restarts:
+            self.island_best[k] = (self.island_best[k][0], g)
+        if bred is not None:
+            bred()
+
+    def _breed_island(
+        self, population: list[Genome], fitness: list[float], nxt: list[Genome], end: int,
+        g: int, seen: set[tuple[Any, ...]], restart: bool,
+    ) -> Iterator[Genome]:
+        """One island's children, appended to ``nxt`` until it holds ``end`` individuals."""
+        cfg, rng, n = self.cfg, self.rng, len(population)
+        sizes = [len(x) for x in population]
         order = sorted(range(n), key=lambda i: (*self.rank_key(fitness[i], sizes[i]), i))
         rank = [0] * n
         for r, i in enumerate(order):
             rank[i] = r
-        nxt: list[Genome] = []
-        self.elite_fitness = {}
-        for i in order[:cfg.elitism]:
-            e = self.population[i].copy()
+        for i in order[:max(cfg.elitism, 1) if restart else cfg.elitism]:
+            e = population[i].copy()
             e.origin = {**e.origin, "elite": True}
             self.elite_fitness[e.origin["uid"]] = fitness[i]
             nxt.append(e)
+            if cfg.unique_children:
+                seen.add(e.key())
             yield e
+        if restart:  # a stagnant island starts afresh around its best
+            while len(nxt) < end:
+                c = initialize(self.skills, rng, cfg.initial_nodes, cfg.terminal_weight)
+                c.origin = {"uid": self.uid(), "born": g, "parents": [], "ops": ["restart"]}
+                nxt.append(c)
+                yield c
+            return
 
         def pick() -> Genome:
             cands = rng.integers(n, size=cfg.tournament)
-            return self.population[min(cands, key=lambda c: rank[int(c)])]
+            return population[min(cands, key=lambda c: rank[int(c)])]
 
-        g = self.generation + 1
-        while len(nxt) < cfg.population:
+        while len(nxt) < end:
             p1, p2 = pick(), pick()
             c1, c2 = p1.copy(), p2.copy()
             ops1: list[str] = []
@@ -384,16 +420,88 @@ class _Run:
             ops1 += mutate(c1, self.skills, rng, cfg)
             ops2 += mutate(c2, self.skills, rng, cfg)
             for c, ops, parent, mate in ((c1, ops1, p1, p2), (c2, ops2, p2, p1)):
+                if cfg.unique_children:
+                    ops += self._made_new(c, seen)
                 parents = [parent.origin["uid"]]
                 if "crossover" in ops:
                     parents.append(mate.origin["uid"])
                 c.origin = {"uid": self.uid(), "born": g, "parents": parents, "ops": ops}
                 nxt.append(c)
-            yield from nxt[len(nxt) - 2:cfg.population]
-        self.population = nxt[:cfg.population]
-        self.generation = g
-        if bred is not None:
-            bred()
+            yield from nxt[len(nxt) - 2:end]
+        del nxt[end:]
+
+    def _made_new(self, child: Genome, seen: set[tuple[Any, ...]]) -> list[str]:
+        """Mutate a child met before again until it is new (up to 8 times); the operators
+        applied. A new child's key joins ``seen``."""
+        ops: list[str] = []
+        key = child.key()
+        for _ in range(_RETRIES):
+            if key not in seen and key not in self.cache:
+                break
+            ops += mutate(child, self.skills, self.rng, self.cfg)
+            key = child.key()
+        seen.add(key)
+        return ops
+
+    # -- islands ---------------------------------------------------------------------------
+    def island_bounds(self) -> list[tuple[int, int]]:
+        """Each island's slice ``[lo, hi)`` of the population."""
+        size = self.cfg.population // self.cfg.islands
+        return [(k * size, (k + 1) * size) for k in range(self.cfg.islands)]
+
+    def migrate(
+        self, population: list[Genome], fitness: list[float]
+    ) -> tuple[list[Genome], list[float]]:
+        """The population after this generation's migration (copies; the same lists when
+        none is due): each island's worst are replaced by its neighbours' best, with their
+        fitness. Only ranks decide, so it draws no random numbers."""
+        cfg = self.cfg
+        if cfg.islands < 2 or cfg.migrants == 0 or self.generation == 0 or \
+                self.generation % cfg.migration_interval:
+            return population, fitness
+        bounds = self.island_bounds()
+        sizes = [len(x) for x in population]
+
+        def ranked(lo: int, hi: int) -> list[int]:
+            return sorted(range(lo, hi),
+                          key=lambda i: (*self.rank_key(fitness[i], sizes[i]), i))
+
+        best = [ranked(lo, hi)[:cfg.migrants] for lo, hi in bounds]
+        worst = [ranked(lo, hi)[::-1] for lo, hi in bounds]
+        before, fitness_before = population, fitness
+        population, fitness = list(population), list(fitness)
+        k_all = len(bounds)
+        for k, (lo, hi) in enumerate(bounds):
+            sources = [(k - 1) % k_all] if cfg.topology == "ring" else \
+                [j for j in range(k_all) if j != k]
+            incoming = [i for j in sources for i in best[j]][:(hi - lo) // 2]
+            for dest, src in zip(worst[k], incoming, strict=False):
+                m = before[src].copy()
+                m.origin = {**m.origin, "migrant_from": src // (hi - lo)}
+                population[dest], fitness[dest] = m, fitness_before[src]
+        return population, fitness
+
+    def stagnant(self) -> set[int]:
+        """The islands to restart this generation: no better best for ``restart_after``
+        generations."""
+        after = self.cfg.restart_after
+        if after == 0:
+            return set()
+        return {k for k, (_, since) in enumerate(self.island_best)
+                if self.generation - since >= after}
+
+    def note_islands(self, fitness: list[float]) -> None:
+        """Track each island's best and the generation it last improved (for restarts)."""
+        if self.cfg.restart_after == 0:
+            return
+        sizes = [len(x) for x in self.population]
+        bounds = self.island_bounds()
+        for k, (lo, hi) in enumerate(bounds):
+            key = min(self.rank_key(fitness[i], sizes[i])[0] for i in range(lo, hi))
+            if k >= len(self.island_best):
+                self.island_best.append((key, self.generation))
+            elif key < self.island_best[k][0]:
+                self.island_best[k] = (key, self.generation)
 
     def record(self, fitness: list[float], episodes: int, gen_time: float) -> GenerationRecord:
         sizes = [len(g) for g in self.population]
@@ -419,6 +527,7 @@ class _Run:
             faults=self.gen_faults.to_dict(),
         )
         self.fault_totals.add(self.gen_faults)
+        self.note_islands(fitness)
         self.history.append(rec)
         if self.rundir is not None:
             self.rundir.append_history(rec.to_dict())

@@ -12,7 +12,7 @@ from skillcompose.arguments import add_json_option, print_json
 from skillcompose.errors import SkillcomposeError
 
 from .config import EVALUATION_BACKENDS as BACKENDS
-from .config import PRESETS, EvolutionConfig
+from .config import PRESETS, TOPOLOGIES, EvolutionConfig
 from .errors import EvolutionError
 
 if TYPE_CHECKING:
@@ -80,7 +80,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "0.1, solutions confirmed on 20 fresh trials) or push (for many "
                    "parameters, e.g. a network's weights: N=150, 20 shared trials, "
                    "every mutated node's parameters perturbed, confirmed on 200 fresh "
-                   "trials); the flags below override it")
+                   "trials) or islands (robust on 4 islands of 150 with ring migration and "
+                   "unique children; add --cache on a deterministic task); the flags below "
+                   "override it")
     p.add_argument("--tournament", type=whole(1, 10**6), help="tournament size (default 2)")
     p.add_argument("--param-sigma", type=number(0.0, 1.0),
                    help="standard deviation of parameter noise in [0, 1] units, from 0 to 1 "
@@ -115,6 +117,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--confirm-rate", type=number(0.0, 1.0), dest="confirm_rate",
                    help="with --confirm, the share of those trials that must each reach the "
                         "target (default: their mean must)")
+    p.add_argument("--islands", type=whole(1, 10_000),
+                   help="split the population into this many islands bred apart, with "
+                   "migration (default 1: one population); --population is the total")
+    p.add_argument("--migration-interval", type=whole(1, big), dest="migration_interval",
+                   help="generations between migrations between islands (default 10)")
+    p.add_argument("--migrants", type=whole(0, 10**6),
+                   help="best individuals each island sends its neighbours (default 2)")
+    p.add_argument("--topology", choices=TOPOLOGIES,
+                   help="who receives migrants: ring (the next island, default) or complete "
+                   "(every other island)")
+    p.add_argument("--restart-after", type=whole(0, big), dest="restart_after",
+                   help="restart an island whose best has not improved for this many "
+                   "generations, keeping its best (default 0: never)")
+    p.add_argument("--unique-children", action="store_true", dest="unique_children",
+                   help="mutate a child again until its genome is new (to the generation, "
+                   "and with --cache to the run)")
     p.add_argument("--checkpoint-every", type=whole(1, big),
                    help="generations between checkpoints (10)")
     p.add_argument("--no-simplify", action="store_true",
@@ -161,7 +179,9 @@ _SETTING_OPTIONS = (
     ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
     ("tournament", "tournament"), ("param_sigma", "param_sigma"),
     ("confirm_trials", "confirm_trials"), ("confirm_rate", "confirm_rate"),
-    ("p_param", "p_param"),
+    ("p_param", "p_param"), ("islands", "islands"),
+    ("migration_interval", "migration_interval"), ("migrants", "migrants"),
+    ("topology", "topology"), ("restart_after", "restart_after"),
     ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
     ("worker_max_jobs", "worker_max_jobs"),
     ("worker_max_growth_mb", "worker_max_growth_mb"),
@@ -183,6 +203,8 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
         changes["cache"] = True
     if args.parsimony:
         changes["parsimony"] = True
+    if args.unique_children:
+        changes["unique_children"] = True
     return changes
 
 
@@ -222,6 +244,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
     flags = {name: opt for opt, name in _SETTING_OPTIONS}
     flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
+                 unique_children="unique_children",
                  eval_time_limit="eval_time_limit")
     for name, value in _given_settings(args).items():
         if name in FREE_SETTINGS:

@@ -12,7 +12,9 @@ from typing import Any
 
 from .errors import EvolutionConfigError
 
-__all__ = ["PRESETS", "EvolutionConfig"]
+__all__ = ["PRESETS", "TOPOLOGIES", "EvolutionConfig"]
+
+TOPOLOGIES = ("ring", "complete")
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,24 @@ class EvolutionConfig:
       confirmations all use the same worlds, drawn once per run, so that an FSA confirmed
       again generation after generation cannot pass by a lucky draw at last.
 
+    Islands and diversity (all off by default; see docs/evolve.md, "Islands"):
+
+    - ``islands``: the population is split into this many islands of equal size
+      (``population`` is the total and must divide evenly), each bred on its own (its own
+      tournaments, its own ``elitism`` best kept), as the paper's authors ran PyEvolve's
+      islands over MPI.
+    - ``migration_interval``: every this many generations each island receives copies of
+      the ``migrants`` best individuals of its neighbours, which replace its worst;
+      ``topology`` says who the neighbours are: ``ring`` (island k receives from island
+      k - 1, as PyEvolve's MPI migrator) or ``complete`` (from every other island).
+      Migration draws no random numbers.
+    - ``restart_after``: an island whose best has not improved for this many generations is
+      restarted: its elites (at least its best) stay, the rest become fresh random FSAs
+      (0: never).
+    - ``unique_children``: a child whose genome equals one already met (in this generation,
+      or evaluated before when ``cache`` is on) is mutated again (up to 8 times) until it
+      is new, so a generation spends its evaluations on new genomes.
+
     Faults and limits (see docs/evolve.md, "Faults and limits"):
 
     - ``eval_time_limit``: wall-clock seconds one evaluation (all its trials) may take; past
@@ -95,6 +115,12 @@ class EvolutionConfig:
     confirm_trials: int = 0
     confirm_rate: float = 0.0
     p_param: float = 0.0
+    islands: int = 1
+    migration_interval: int = 10
+    migrants: int = 2
+    topology: str = "ring"
+    restart_after: int = 0
+    unique_children: bool = False
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 4
@@ -124,6 +150,16 @@ class EvolutionConfig:
         whole("confirm_trials", 0)
         whole("checkpoint_every", 1)
         whole("chunks_per_worker", 1)
+        whole("islands", 1)
+        whole("migration_interval", 1)
+        whole("migrants", 0)
+        whole("restart_after", 0)
+        if self.topology not in TOPOLOGIES:
+            problems.append(f"topology = {self.topology!r}: choose one of "
+                            f"{', '.join(TOPOLOGIES)}")
+        if not isinstance(self.unique_children, bool):
+            problems.append(f"unique_children = {self.unique_children!r}: expected true or "
+                            "false")
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
             prob(name)
         if self.trials is not None:
@@ -152,6 +188,19 @@ class EvolutionConfig:
             problems.append(
                 f"elitism = {self.elitism} must be smaller than population = {self.population}"
             )
+        if not problems and self.islands > 1:
+            size, rest = divmod(self.population, self.islands)
+            if rest or size < 2:
+                problems.append(
+                    f"population = {self.population} cannot be split into {self.islands} "
+                    "equal islands of 2 or more; give a multiple of islands"
+                )
+            elif self.elitism >= size:
+                problems.append(f"elitism = {self.elitism} must be smaller than an island "
+                                f"({size} individuals)")
+            elif self.migrants >= size:
+                problems.append(f"migrants = {self.migrants} must be smaller than an island "
+                                f"({size} individuals)")
         if problems:
             raise EvolutionConfigError(
                 "invalid evolution settings: " + "; ".join(problems)
@@ -188,6 +237,20 @@ PRESETS: dict[str, dict[str, Any]] = {
         "initial_nodes": 12,
         "param_sigma": 0.1,
         "confirm_trials": 20,
+    },
+    "islands": {
+        "population": 600,
+        "trials": 3,
+        "common_random_numbers": True,
+        "elitism": 2,
+        "tournament": 3,
+        "initial_nodes": 12,
+        "param_sigma": 0.1,
+        "confirm_trials": 20,
+        "islands": 4,
+        "migration_interval": 10,
+        "migrants": 2,
+        "unique_children": True,
     },
     "push": {
         "population": 150,

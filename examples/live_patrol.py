@@ -21,8 +21,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from skillcompose import FSA, Blackboard, Param, Registry, State, compile_fsa, skill
-from skillcompose.ticking import RUNNING
+from skillcompose import FSA, RUNNING, Blackboard, Param, Registry, State, compile_fsa, skill
 from skillcompose_view.live import LivePublisher
 
 SPEED_M_S = 0.5

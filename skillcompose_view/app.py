@@ -24,6 +24,7 @@ from typing import Any
 from urllib.parse import urlencode
 
 from nicegui import app, ui
+from nicegui import run as background
 
 from skillcompose.errors import SkillcomposeError
 from skillcompose.registry import Registry
@@ -48,6 +49,7 @@ log = logging.getLogger("skillcompose.view")
 
 REFRESH_S = 1.0  # how often the runs page re-reads the run directories
 LIVE_REFRESH_S = 0.25
+REPLAY_TIMEOUT_S = 300.0  # the longest a replay's episode may take before its page fails
 MAX_FILES = 500
 COLOURS = ("#2563eb", "#dc2626", "#059669", "#d97706", "#7c3aed", "#0891b2", "#db2777",
            "#65a30d", "#475569", "#ea580c")
@@ -114,6 +116,10 @@ def _safe(where: str, build: Callable[[], None]) -> None:
         log.warning("%s: %s: %s", where, type(exc).__name__, exc)
         ui.label(f"{where}: unexpected {type(exc).__name__}: {exc}") \
             .classes("text-red-700").props("data-testid=error")
+
+
+def _raise(exc: BaseException) -> None:
+    raise exc
 
 
 def _header(active: str) -> None:
@@ -410,8 +416,8 @@ def _states_table(view: FSAView) -> None:
 # ---------------------------------------------------------------------------------------
 # replay
 # ---------------------------------------------------------------------------------------
-def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str,
-                 backend: str) -> None:
+async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str,
+                       backend: str) -> None:
     _header("Replay")
     files = fsa_files(config)
     chosen = path or (str(files[0]) if files else "")
@@ -448,13 +454,26 @@ def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings
             .classes("text-red-700").props("data-testid=error")
         return
 
+    # The episode runs in a worker thread, so a long one does not stop the server answering
+    # other pages meanwhile; this page is sent when it ends (see REPLAY_TIMEOUT_S).
+    holder = ui.column().classes("w-full")
+    pairs = [s.strip() for s in setting_text.split(",") if s.strip()]
+    try:
+        episode = await background.io_bound(run_episode, Path(chosen), target,
+                                     int(seed_in.value or 0), parse_settings(pairs),
+                                     backend=backend.strip() or None)
+        failure = None
+    except Exception as exc:  # shown by _safe below, as every page part's errors are
+        episode, failure = None, exc
+
     def build() -> None:
-        pairs = [s.strip() for s in setting_text.split(",") if s.strip()]
-        episode = run_episode(Path(chosen), target, int(seed_in.value or 0),
-                              parse_settings(pairs), backend=backend.strip() or None)
+        if failure is not None:
+            raise failure
+        assert episode is not None
         _episode_view(episode)
 
-    _safe("replay", build)
+    with holder:
+        _safe("replay", build)
 
 
 def _episode_view(ep: Episode) -> None:
@@ -668,10 +687,14 @@ def build(config: ViewerConfig) -> None:
     def fsa_page(path: str = "", task: str = "") -> None:
         _safe("FSA", lambda: _fsa_page(config, path, task))
 
-    @ui.page("/replay", title="skillcompose view: replay")
-    def replay_page(path: str = "", task: str = "", seed: str = "0", settings: str = "",
-                    backend: str = "") -> None:
-        _safe("replay", lambda: _replay_page(config, path, task, seed, settings, backend))
+    @ui.page("/replay", title="skillcompose view: replay", response_timeout=REPLAY_TIMEOUT_S)
+    async def replay_page(path: str = "", task: str = "", seed: str = "0", settings: str = "",
+                          backend: str = "") -> None:
+        try:
+            await _replay_page(config, path, task, seed, settings, backend)
+        except Exception as exc:  # as _safe: one line, never a traceback in the page
+            failure = exc
+            _safe("replay", lambda: _raise(failure))
 
     @ui.page("/live", title="skillcompose view: live")
     def live_page() -> None:

@@ -13,12 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from skillcompose import Blackboard, load_fsa, load_task
+from skillcompose import RUNNING, Blackboard, load_fsa, load_task
 from skillcompose.blackboard import DELETED
 from skillcompose.cli import check_backend
 from skillcompose.executor import trial_rngs
 from skillcompose.fsa import FSA
-from skillcompose.ticking import RUNNING
 
 __all__ = ["KINEMATIC_KEYS", "MAX_STEPS", "Episode", "Frame", "run_episode", "short"]
 

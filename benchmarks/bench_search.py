@@ -1,0 +1,440 @@
+"""How strong is the search? Success rate, Koza's computational effort and best fitness per
+budget on classic FSA benchmarks, for the head's presets and the island model.
+
+Every (task, settings, seed) is one evolution run, serial in its own process; ``--workers``
+runs that many at once. Every number in ``docs/results/search.md`` comes from this script::
+
+    python benchmarks/bench_search.py                    # the default run (about 20 min)
+    python benchmarks/bench_search.py --full             # adds move to push (hours)
+    python benchmarks/bench_search.py --quick --out /tmp/s   # a smoke test (seconds)
+
+Koza's computational effort (Genetic Programming, 1992, chapter 8): with ``P(M, i)`` the
+share of runs of population ``M`` solved by generation ``i``, ``I(M, i, z) = M (i + 1)
+ceil(ln(1 - z) / ln(1 - P(M, i)))`` individuals must be processed to solve the task with
+probability ``z`` = 0.99 by independent runs of ``i + 1`` generations; the effort ``E`` is
+the minimum over ``i``. Its 95 % interval is a percentile bootstrap over the runs (2000
+resamples); an upper end of infinity means that some resamples hold no solved run. Beside it,
+the effort in episodes counts what was actually run (a cache, repeated trials and
+confirmations change it): the same minimum with the mean episodes the runs had spent by
+generation ``i`` in place of ``M (i + 1)``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:  # the task modules under benchmarks/tasks, run from anywhere
+    sys.path.insert(0, str(ROOT))
+
+from evolve import PRESETS, EvolutionConfig, evolve  # noqa: E402
+from skillcompose.task import load_task  # noqa: E402
+
+Z = 0.99  # Koza's probability of success
+
+
+@dataclass(frozen=True)
+class Bench:
+    """One task of the benchmark: its module, settings, budget and literature."""
+
+    name: str
+    module: str
+    settings: dict[str, Any]
+    generations: int
+    budgets: tuple[int, ...]  # episodes at which the best fitness so far is reported
+    configs: tuple[str, ...]
+    about: str
+    published: tuple[tuple[str, str, str], ...] = ()  # (method, effort, source and status)
+    fresh: int = 0  # fresh episodes on which each exported FSA is checked (noisy tasks)
+    full_only: bool = False
+
+
+CONFIGS: dict[str, dict[str, Any]] = {
+    "paper": PRESETS["paper"],
+    "robust": PRESETS["robust"],
+    "robust + cache": {**PRESETS["robust"], "cache": True},
+    "robust + cache + unique": {**PRESETS["robust"], "cache": True, "unique_children": True},
+    "islands": PRESETS["islands"],
+    "islands + cache": {**PRESETS["islands"], "cache": True},
+    "islands + cache + restarts": {**PRESETS["islands"], "cache": True, "restart_after": 20},
+    "push": PRESETS["push"],
+    "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
+}
+"""The settings compared: the head's presets, and the island preset (with the cache on the
+deterministic tasks, where a genome's fitness never changes); between them, what each
+mechanism adds on its own."""
+
+DETERMINISTIC = ("paper", "robust", "robust + cache", "robust + cache + unique",
+                 "islands + cache")
+
+BENCHES = (
+    Bench(
+        "ant, Santa Fe trail", "benchmarks.tasks.ant", {"trail": "santa_fe"}, 60,
+        (20_000, 60_000), DETERMINISTIC,
+        "Koza's Santa Fe trail: 32 x 32 torus, 89 pellets, 600 time steps; solved when all "
+        "89 are eaten.",
+        (("genetic programming (Koza 1992), population 500", "450,000",
+          "Koza, Genetic Programming (1992), chapter 7, as cited throughout the GP "
+          "literature; not read here"),
+         ("FSA by evolutionary programming, 'Solving the artificial ant on the Santa Fe "
+          "trail problem in 20,696 fitness evaluations' (Christensen and Oppacher, GECCO "
+          "2007)", "20,696", "the paper's title; its setting (time steps) not read here")),
+    ),
+    Bench(
+        "ant, John Muir trail", "benchmarks.tasks.ant", {"trail": "john_muir"}, 60,
+        (10_000, 30_000), (*DETERMINISTIC, "islands + cache + restarts"),
+        "Jefferson et al.'s John Muir trail (Tracker, 1991): 32 x 32 torus, 89 pellets, "
+        "200 time steps; solved when all 89 are eaten.",
+        (("genetic algorithm on FSAs, Tracker (Jefferson et al. 1991), population 65,536 "
+          "on a Connection Machine", "—",
+          "grid, pellets and step limit checked against a public copy of the trail and a "
+          "summary of the paper; no effort figure could be read here"),),
+    ),
+    Bench(
+        "maze (wall following)", "benchmarks.tasks.maze", {}, 60, (3_000, 10_000),
+        DETERMINISTIC,
+        "A 7 x 7-cell perfect maze with a wall-ahead sensor, exit reached from four corners "
+        "in turn within 1000 actions; solved when all four are done. Our maze: no published "
+        "figure applies.",
+    ),
+    Bench(
+        "pour water (noisy)", "examples.pour_water", {"p_fail": 0.2}, 2000,
+        (50_000, 150_000), ("robust", "islands"),
+        "The paper's section 4.1 at p_fail 0.2; solved when the best FSA pours in every "
+        "episode of its evaluation and its confirmation.",
+        fresh=1000,
+    ),
+    Bench(
+        "move to push (many parameters)", "examples.move_to_push", {}, 816,
+        (500_000, 2_000_000), ("push", "push + islands"),
+        "The paper's section 4.2 with its network's weights evolved (`--preset push`).",
+        fresh=1000, full_only=True,
+    ),
+)
+
+
+@dataclass
+class RunResult:
+    bench: str
+    config: str
+    seed: int
+    solved: bool
+    solved_at: int | None  # generation of the solution
+    generations: int
+    episodes: int
+    wall: float
+    population: int
+    curve: list[tuple[int, float, int]] = field(default_factory=list)
+    # (generation, best so far, episodes so far)
+    fresh_rate: float | None = None
+
+
+def run_one(bench: Bench, config: str, seed: int, generations: int,
+            population: int | None) -> RunResult:
+    """One serial evolution run."""
+    task = load_task(bench.module, **bench.settings)
+    cfg = EvolutionConfig(**{**CONFIGS[config], "generations": generations})
+    if population is not None:
+        cfg = cfg.replace(population=population,
+                          elitism=min(cfg.elitism, population // cfg.islands - 1))
+    t0 = time.perf_counter()
+    r = evolve(task, cfg, seed=seed, workers=1, backend="serial", simplify_result=False,
+               check_trials=bench.fresh)
+    wall = time.perf_counter() - t0
+    sign = -1.0 if task.minimize else 1.0
+    best = -math.inf
+    curve = []
+    for h in r.history:
+        best = max(best, sign * h.best)
+        curve.append((h.generation, sign * best, h.total_evaluations))
+    return RunResult(
+        bench=bench.name, config=config, seed=seed, solved=r.solved,
+        solved_at=r.generations if r.solved else None, generations=r.generations,
+        episodes=r.evaluations, wall=wall, population=cfg.population, curve=curve,
+        fresh_rate=r.fresh.get("success_rate") if r.fresh else None,
+    )
+
+
+# -- statistics ------------------------------------------------------------------------------
+def koza_effort(solved_at: Sequence[int | None], population: int, generations: int,
+                z: float = Z) -> tuple[float, int | None]:
+    """Koza's effort ``E`` (individuals) and the generation ``i`` where ``I(M, i, z)`` is
+    least; ``(inf, None)`` when no run solved."""
+    return _effort(solved_at, [population * (i + 1) for i in range(generations + 1)], z)
+
+
+def episode_effort(runs: Sequence[RunResult], generations: int, z: float = Z) -> float:
+    """The same minimum with the mean episodes the runs had spent by each generation."""
+    spent = []
+    for i in range(generations + 1):
+        per_run = []
+        for r in runs:
+            upto = [e for g, _, e in r.curve if g <= i]
+            per_run.append(upto[-1] if upto else 0)
+        spent.append(statistics.fmean(per_run))
+    return _effort([r.solved_at for r in runs], spent, z)[0]
+
+
+def _effort(solved_at: Sequence[int | None], cost: Sequence[float],
+            z: float) -> tuple[float, int | None]:
+    n = len(solved_at)
+    best, where = math.inf, None
+    for i, c in enumerate(cost):
+        p = sum(1 for s in solved_at if s is not None and s <= i) / n if n else 0.0
+        if p == 0.0:
+            continue
+        times = 1 if p >= z else math.ceil(math.log(1 - z) / math.log(1 - p))
+        if c * times < best:
+            best, where = c * times, i
+    return best, where
+
+
+def bootstrap_effort(solved_at: Sequence[int | None], population: int, generations: int,
+                     resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """95 % percentile bootstrap interval of Koza's effort, resampling runs."""
+    rng = np.random.default_rng(seed)
+    n = len(solved_at)
+    values = []
+    for _ in range(resamples):
+        pick = rng.integers(n, size=n)
+        values.append(koza_effort([solved_at[int(k)] for k in pick], population,
+                                  generations)[0])
+    lo, hi = np.quantile(np.array(values), [0.025, 0.975], method="inverted_cdf")
+    return float(lo), float(hi)
+
+
+def best_at(run: RunResult, budget: int) -> float:
+    """The best fitness a run had reached within ``budget`` episodes."""
+    within = [b for _, b, e in run.curve if e <= budget]
+    return within[-1] if within else math.nan
+
+
+# -- report ----------------------------------------------------------------------------------
+def _num(x: float) -> str:
+    if math.isinf(x):
+        return "∞"
+    if math.isnan(x):
+        return "—"
+    return f"{x:,.0f}"
+
+
+def _median(values: Sequence[float]) -> float:
+    return float(statistics.median(values)) if values else math.nan
+
+
+def _fit(x: float) -> str:
+    return "—" if math.isnan(x) else f"{x:.3g}"
+
+
+@dataclass
+class Row:
+    config: str
+    runs: list[RunResult]
+    effort: float
+    effort_gen: int | None
+    ci: tuple[float, float]
+    episodes_effort: float
+
+
+def summarise(bench: Bench, config: str, runs: list[RunResult], generations: int) -> Row:
+    solved_at = [r.solved_at for r in runs]
+    population = runs[0].population
+    effort, where = koza_effort(solved_at, population, generations)
+    return Row(config, runs, effort, where, bootstrap_effort(solved_at, population,
+                                                             generations),
+               episode_effort(runs, generations))
+
+
+def bench_table(bench: Bench, rows: Sequence[Row]) -> list[str]:
+    head = ("| settings | M | solved | generations to solve, median | effort E [95 % CI] "
+            "(individuals) | effort (episodes) | " +
+            " | ".join(f"best at {b:,} episodes, median" for b in bench.budgets) +
+            " | episodes per run, median | wall time per run [s], median |")
+    if bench.fresh:
+        head += f" fresh episodes solved (of {bench.fresh}), median |"
+    out = [head, head_sep(head)]
+    for row in rows:
+        runs = row.runs
+        n_solved = sum(r.solved for r in runs)
+        gens = [float(r.solved_at) for r in runs if r.solved_at is not None]
+        line = (f"| {row.config} | {runs[0].population} | {n_solved}/{len(runs)} | "
+                f"{_num(_median(gens))} | {_num(row.effort)} [{_num(row.ci[0])}, "
+                f"{_num(row.ci[1])}] | {_num(row.episodes_effort)} | " +
+                " | ".join(_fit(_median([best_at(r, b) for r in runs]))
+                           for b in bench.budgets) +
+                f" | {_num(_median([float(r.episodes) for r in runs]))} | "
+                f"{_median([r.wall for r in runs]):.1f} |")
+        if bench.fresh:
+            rates = [r.fresh_rate for r in runs if r.fresh_rate is not None]
+            line += f" {_median(rates):.3f} |" if rates else " — |"
+        out.append(line)
+    return out
+
+
+def head_sep(head: str) -> str:
+    return "|" + "---|" * (head.count("|") - 1)
+
+
+def targets(bench: Bench, rows: Sequence[Row]) -> list[str]:
+    """The issue's targets for this task, as measured."""
+    by = {r.config: r for r in rows}
+    out: list[str] = []
+    if bench.fresh == 0 and "islands + cache" in by:
+        new = by["islands + cache"].effort
+        head = min(by[c].effort for c in ("paper", "robust") if c in by)
+        if math.isinf(head) and math.isinf(new):
+            out.append("- effort at most a third of the head's: **not measurable** (no "
+                       "settings solved the task within the budget)")
+        else:
+            ok = new <= head / 3
+            out.append(f"- effort at most a third of the head's best preset: "
+                       f"**{'yes' if ok else 'no'}** (islands + cache {_num(new)}, head "
+                       f"{_num(head)}; ratio "
+                       f"{'—' if math.isinf(head) else f'{new / head:.2f}'})")
+        published = [p for p in bench.published if p[1] not in ("—",)]
+        if published:
+            gp = published[0]
+            figure = float(gp[1].replace(",", ""))
+            out.append(f"- below the published plain-GP figure ({gp[1]}): "
+                       f"**{'yes' if new < figure else 'no'}** (islands + cache "
+                       f"{_num(new)})")
+    if bench.fresh and "robust" in by:
+        rob = by["robust"]
+        gens = [float(r.solved_at) for r in rob.runs if r.solved_at is not None]
+        rates = [r.fresh_rate for r in rob.runs if r.fresh_rate is not None]
+        out.append(f"- robust preset: {sum(r.solved for r in rob.runs)}/{len(rob.runs)} "
+                   f"seeds solved, median {_num(_median(gens))} generations (target ≤ 72), "
+                   f"median fresh solved rate {_median(rates):.3f} (target ≥ 0.99)")
+        for name, row in by.items():
+            eps = _median([float(r.episodes) for r in row.runs])
+            out.append(f"- {name}: median episodes per run {_num(eps)} (target below "
+                       "132,570)")
+    return out
+
+
+def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argparse.Namespace,
+           seconds: float, load: tuple[tuple[float, float, float], tuple[float, float, float]],
+           generations: dict[str, int]) -> str:
+    lines = [
+        "# Search strength: classic FSA benchmarks, computational effort",
+        "",
+        "Written by `benchmarks/bench_search.py`; every number below was measured by that "
+        "run. Do not edit by hand: rerun the script.",
+        "",
+        f"Command: `python benchmarks/bench_search.py {' '.join(args.argv)}`".rstrip() + "  ",
+        f"Machine: {os.cpu_count()} CPUs, {platform.machine()}, Python "
+        f"{platform.python_version()}, NumPy {np.__version__}; {args.workers} runs at a "
+        f"time, each serial. Load average (1, 5, 15 min) at the start "
+        f"{', '.join(f'{x:.2f}' for x in load[0])}, at the end "
+        f"{', '.join(f'{x:.2f}' for x in load[1])} (the machine is shared: wall times are "
+        f"of a busy machine). Total time of the script: {seconds / 60:.1f} min.",
+        "",
+        "Koza's computational effort `E = min_i M (i + 1) ceil(ln(0.01) / ln(1 - P(M, i)))` "
+        "counts the individuals to process for 99 % probability of a solution by "
+        "independent runs; `M` is the population (all islands together), `i` a generation "
+        "(0 is the initial one), `P(M, i)` the share of runs solved by generation `i`. The "
+        "interval is a 95 % percentile bootstrap over the runs (2000 resamples; ∞: some "
+        "resamples hold no solved run). *Effort (episodes)* is the same minimum with the "
+        "episodes the runs actually spent (cache hits cost none; repeated trials and "
+        "confirmations count). *Best at N episodes*: the best fitness a run had reached "
+        "within that many episodes, median over the seeds.",
+        "",
+        "Settings: `paper` and `robust` are the head's presets; `islands` is the island "
+        f"preset ({_settings(PRESETS['islands'])}); `islands + cache` adds `--cache` "
+        "(on deterministic tasks a genome's fitness never changes).",
+        "",
+    ]
+    for bench in benches:
+        rows = results[bench.name]
+        lines += [f"## {bench.name}", "", bench.about, "",
+                  f"`{bench.module}` {bench.settings or ''}, {len(rows[0].runs)} seeds "
+                  f"(0–{len(rows[0].runs) - 1}), budget {generations[bench.name]} "
+                  "generations.", ""]
+        lines += bench_table(bench, rows)
+        lines.append("")
+        if bench.published:
+            lines += ["Published figures (individuals processed for 99 % success):", "",
+                      "| method | effort | source, and what we could check |", "|---|---:|---|"]
+            lines += [f"| {m} | {e} | {s} |" for m, e, s in bench.published]
+            lines.append("")
+        t = targets(bench, rows)
+        if t:
+            lines += ["Targets of the issue, as measured:", "", *t, ""]
+    return "\n".join(lines) + "\n"
+
+
+def _settings(d: dict[str, Any]) -> str:
+    return ", ".join(f"`{k}={v}`" for k, v in d.items())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seeds", type=int, default=10, help="seeds 0..N-1 (default 10)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help="runs at a time (default: all cores)")
+    p.add_argument("--full", action="store_true", help="add move to push (hours)")
+    p.add_argument("--quick", action="store_true",
+                   help="a smoke test: the maze and Santa Fe, 2 seeds, tiny budgets")
+    p.add_argument("--only", action="append", default=[], metavar="NAME",
+                   help="only the benchmarks whose name contains NAME (repeatable)")
+    p.add_argument("--out", default=None,
+                   help="output folder (default docs/results; --quick needs one)")
+    args = p.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    if args.seeds < 1 or args.workers < 1:
+        p.error("--seeds and --workers must be at least 1")
+    if args.quick and args.out is None:
+        p.error("--quick measures nothing worth keeping: give --out DIR (not docs/results)")
+    args.out = args.out or str(ROOT / "docs" / "results")
+    benches = [b for b in BENCHES if args.full or not b.full_only]
+    if args.only:
+        benches = [b for b in benches if any(s in b.name for s in args.only)]
+    if args.quick:
+        benches = [b for b in benches if b.name.startswith(("maze", "ant, Santa"))]
+    if not benches:
+        p.error(f"--only {args.only} matches no benchmark; names: "
+                f"{', '.join(b.name for b in BENCHES)}")
+    seeds = list(range(2 if args.quick else args.seeds))
+    generations = {b.name: 3 if args.quick else b.generations for b in benches}
+    population = 40 if args.quick else None
+    load0 = os.getloadavg()
+    t0 = time.perf_counter()
+    jobs = [(b, c, s) for b in benches for c in b.configs for s in seeds]
+    results: dict[tuple[str, str], list[RunResult]] = {}
+    if args.workers == 1:
+        done = [run_one(b, c, s, generations[b.name], population) for b, c, s in jobs]
+    else:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            futures = [pool.submit(run_one, b, c, s, generations[b.name], population)
+                       for b, c, s in jobs]
+            done = [f.result() for f in futures]
+    for r in done:
+        results.setdefault((r.bench, r.config), []).append(r)
+        print(f"{r.bench} | {r.config} | seed {r.seed}: solved {r.solved} at "
+              f"{r.solved_at}, {r.episodes} episodes, {r.wall:.1f} s", file=sys.stderr)
+    rows = {b.name: [summarise(b, c, results[(b.name, c)], generations[b.name])
+                     for c in b.configs] for b in benches}
+    text = report(rows, benches, args, time.perf_counter() - t0, (load0, os.getloadavg()),
+                  generations)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "search.md").write_text(text, encoding="utf-8")
+    print(f"wrote {out / 'search.md'}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

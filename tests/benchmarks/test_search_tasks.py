@@ -1,0 +1,77 @@
+"""The benchmark tasks of bench_search.py: the trails and the maze as published or designed,
+their hand-written FSAs, and the effort statistics and smoke run of the script."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from skillcompose.task import TaskError, load_task
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_search  # noqa: E402
+
+from benchmarks.tasks import ant, maze  # noqa: E402
+
+
+@pytest.mark.parametrize("trail", sorted(ant.TRAILS))
+def test_each_trail_is_32_by_32_with_89_pellets(trail: str) -> None:
+    lines = ant.TRAILS[trail]
+    assert len(lines) == 32 and {len(line) for line in lines} == {32}
+    assert sum(line.count("#") for line in lines) == 89
+    assert lines[0][0] == "." and lines[0][1] == "#"  # the ant starts facing the trail
+
+
+@pytest.mark.parametrize(("trail", "eaten"), [("john_muir", 81.0), ("santa_fe", 89.0)])
+def test_the_hand_written_ant(trail: str, eaten: float) -> None:
+    task = load_task("benchmarks.tasks.ant", trail=trail)
+    (result, fitness), = task.run_trials(task.compile(ant.REFERENCE), 0, 1)
+    assert fitness == eaten
+    assert result.steps == task.step_limit == ant.STEPS[trail]  # it runs out of time
+    assert task.solved(fitness) == (eaten == 89.0)
+
+
+def test_the_maze_is_perfect_and_the_wall_follower_solves_it() -> None:
+    floor = {(r, c) for r, line in enumerate(maze.MAZE) for c, ch in enumerate(line)
+             if ch != "#"}
+    links = sum(1 for r, c in floor for n in ((r, c + 1), (r + 1, c)) if n in floor)
+    assert links == len(floor) - 1  # a tree: one path between any two cells
+    assert set(maze.DISTANCE) == floor  # every cell reaches the exit
+    task = load_task("benchmarks.tasks.maze")
+    (result, fitness), = task.run_trials(task.compile(maze.REFERENCE), 0, 1)
+    assert (result.outcome, fitness) == ("success", 4.0) and task.solved(fitness)
+    assert result.steps < task.step_limit
+
+
+def test_bad_task_settings_say_what_to_give() -> None:
+    with pytest.raises(TaskError, match="choose one of john_muir, santa_fe"):
+        load_task("benchmarks.tasks.ant", trail="los_altos")
+    with pytest.raises(TaskError, match="whole number of actions"):
+        load_task("benchmarks.tasks.maze", steps=0)
+
+
+def test_koza_effort_by_hand() -> None:
+    # 10 runs of M = 100: 5 solved at generation 4, the rest never. P(4) = 0.5, so
+    # R = ceil(ln 0.01 / ln 0.5) = 7 runs of 5 generations: 100 * 5 * 7 = 3500
+    solved_at: list[int | None] = [4] * 5 + [None] * 5
+    assert bench_search.koza_effort(solved_at, 100, 10) == (3500, 4)
+    assert bench_search.koza_effort([0, 0], 50, 3) == (50, 0)  # P = 1 at once: M
+    assert bench_search.koza_effort([None, None], 50, 3) == (math.inf, None)
+    lo, hi = bench_search.bootstrap_effort(solved_at, 100, 10, resamples=200)
+    assert lo <= 3500 <= hi
+
+
+def test_quick_run_writes_its_report(tmp_path: Path) -> None:
+    assert bench_search.main(["--quick", "--workers", "1", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "search.md").read_text(encoding="utf-8")
+    assert "Command: `python benchmarks/bench_search.py --quick --workers 1 --out" in text
+    for bench in ("## ant, Santa Fe trail", "## maze (wall following)"):
+        assert bench in text
+    rows = [line for line in text.splitlines() if line.startswith("| paper | 40 | ")]
+    assert len(rows) == 2  # one per task, measured: M = 40, two seeds
+    assert all("/2 |" in row for row in rows)

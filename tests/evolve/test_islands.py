@@ -1,0 +1,144 @@
+"""The island model and the diversity options: migration, restarts, unique children; the same
+run on any backend and number of workers, and resumed as if never interrupted."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from evolve import (
+    PRESETS,
+    EvolutionConfig,
+    EvolutionConfigError,
+    EvolutionResult,
+    RunDir,
+    evolve,
+)
+from evolve.cli import _config, build_parser
+from skillcompose.task import Task, load_task
+
+ISLANDS = EvolutionConfig(population=40, initial_nodes=8, generations=7, islands=4,
+                          migration_interval=2, migrants=2, elitism=1, restart_after=2,
+                          unique_children=True, cache=True, checkpoint_every=2)
+
+
+def _task() -> Task:
+    return load_task("examples.toy_task", p_fail=0.3, tolerance=0.002)
+
+
+def _run(r: EvolutionResult) -> tuple[object, ...]:
+    return ([(h.generation, h.best, h.mean, h.median, h.best_size, h.total_evaluations)
+             for h in r.history], r.best_fitness, r.evaluations, r.evolved_fsa)
+
+
+def test_islands_are_the_same_run_on_any_backend_and_number_of_workers() -> None:
+    task = _task()
+    serial = evolve(task, ISLANDS, seed=5, backend="serial", simplify_result=False,
+                    check_trials=0)
+    one = evolve(task, ISLANDS, seed=5, backend="process", workers=1,
+                 simplify_result=False, check_trials=0)
+    two = evolve(task, ISLANDS, seed=5, backend="process", workers=2,
+                 simplify_result=False, check_trials=0)
+    assert _run(serial) == _run(one) == _run(two)
+    assert serial.generations == ISLANDS.generations  # unsolved: every generation ran
+
+
+def test_an_interrupted_island_run_resumes_as_if_never_interrupted(tmp_path: Path) -> None:
+    task = _task()
+    full = evolve(task, ISLANDS, seed=6, out_dir=tmp_path / "full", simplify_trials=10,
+                  check_trials=10)
+    short = evolve(task, ISLANDS.replace(generations=3), seed=6, out_dir=tmp_path / "short",
+                   simplify_trials=10, check_trials=10)
+    assert short.generations == 3
+    state = RunDir(tmp_path / "short").load_checkpoint()
+    assert len(state["island_best"]) == 4  # restarts' bookkeeping is checkpointed
+    resumed = evolve(task, ISLANDS, resume=tmp_path / "short")
+    assert _run(resumed) == _run(full)
+    assert resumed.best_fsa == full.best_fsa
+
+
+def test_migrants_arrive_every_interval_from_the_ring_neighbour() -> None:
+    from evolve.algorithm import _Run  # the breeding step, seen from inside
+
+    task = _task()
+    cfg = EvolutionConfig(population=12, initial_nodes=6, islands=3, migrants=2,
+                          migration_interval=1, topology="ring")
+    from evolve.genome import SkillSet
+    from evolve.operators import initialize
+
+    skills = SkillSet.from_task(task)
+    run = _Run(task, cfg, 0, skills, None, None, None, 1, {})
+    for _ in range(cfg.population):
+        g = initialize(skills, run.rng, cfg.initial_nodes)
+        g.origin = {"uid": run.uid()}
+        run.population.append(g)
+    run.generation = 1
+    fitness = [float(i) for i in range(cfg.population)]  # minimised: index 0 is the best
+    moved, moved_fitness = run.migrate(run.population, fitness)
+    # island 0 (0-3) gets island 2's best (8, 9) in place of its worst (3, 2); island 1
+    # (4-7) gets island 0's best (0, 1); island 2 (8-11) gets island 1's best (4, 5)
+    assert [g.origin["uid"] for g in moved] == [0, 1, 9, 8, 4, 5, 1, 0, 8, 9, 5, 4]
+    assert moved_fitness == [0, 1, 9, 8, 4, 5, 1, 0, 8, 9, 5, 4]
+    assert [g.origin.get("migrant_from") for g in moved[:4]] == [None, None, 2, 2]
+    run.cfg = cfg.replace(migration_interval=2)
+    run.generation = 3  # with an interval of 2, generation 3 has none
+    assert run.migrate(run.population, fitness)[1] == fitness
+    complete = cfg.replace(topology="complete")
+    run.cfg = complete
+    moved, moved_fitness = run.migrate(run.population, fitness)
+    # island 0 receives from islands 1 and 2: the best two of each, capped at half (2)
+    assert moved_fitness[:4] == [0, 1, 5, 4]
+
+
+def test_unique_children_spend_evaluations_on_new_genomes() -> None:
+    task = _task()
+    base = EvolutionConfig(population=60, initial_nodes=6, generations=4, tournament=3,
+                           cache=True)
+    plain = evolve(task, base, seed=1, simplify_result=False, check_trials=0)
+    unique = evolve(task, base.replace(unique_children=True), seed=1,
+                    simplify_result=False, check_trials=0)
+    assert plain.generations == unique.generations == 4  # neither solved: whole budgets
+    # with the cache, an evaluation is a new genome: unique children evaluate more of them
+    assert unique.evaluations > plain.evaluations
+
+
+def test_a_stagnant_island_restarts_around_its_best() -> None:
+    task = _task()
+    cfg = EvolutionConfig(population=20, initial_nodes=6, generations=6, islands=2,
+                          restart_after=1, migrants=0)
+    r = evolve(task, cfg, seed=3, simplify_result=False, check_trials=0)
+    assert r.generations == 6
+    # the toy task's best does not improve every generation, so some island restarted:
+    # its children were drawn afresh ("restart"); the run stays whole and valid
+    restarted = evolve(task, cfg.replace(generations=6, restart_after=0), seed=3,
+                       simplify_result=False, check_trials=0)
+    assert _run(r) != _run(restarted)
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    ({"population": 30, "islands": 4}, "cannot be split into 4 equal islands"),
+    ({"population": 8, "islands": 4, "elitism": 2}, "smaller than an island"),
+    ({"population": 8, "islands": 4, "migrants": 2}, "migrants = 2 must be smaller"),
+    ({"topology": "star"}, "choose one of ring, complete"),
+])
+def test_bad_island_settings_are_refused_with_the_fix(
+    changes: dict[str, object], message: str
+) -> None:
+    with pytest.raises(EvolutionConfigError, match=message):
+        EvolutionConfig(**changes)  # type: ignore[arg-type]
+
+
+def test_the_command_line_sets_islands_and_the_island_preset() -> None:
+    args = build_parser().parse_args(
+        ["evolve", "examples.toy_task", "--islands", "3", "--population", "30",
+         "--migration-interval", "5", "--migrants", "1", "--topology", "complete",
+         "--restart-after", "20", "--unique-children"])
+    cfg = _config(args)
+    assert (cfg.islands, cfg.population, cfg.migration_interval, cfg.migrants,
+            cfg.topology, cfg.restart_after, cfg.unique_children) == (
+        3, 30, 5, 1, "complete", 20, True)
+    preset = _config(build_parser().parse_args(["evolve", "examples.toy_task", "--preset",
+                                                "islands"]))
+    assert preset == EvolutionConfig(**PRESETS["islands"])
+    assert PRESETS["paper"] == {}  # the paper's table 1, untouched
