@@ -89,9 +89,11 @@ __all__ = [
 
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "start", "step_limit", "terminals", "states", "meta")
-REQUIRED_TOP_LEVEL = ("format", "start", "states")
+REQUIRED_TOP_LEVEL = {"format": "format: 1", "start": "start: <name of the first state>",
+                      "states": "states: {<name>: {skill: ..., transitions: {...}}}"}
 STATE_KEYS = ("skill", "params", "transitions", "time_limit")
-REQUIRED_STATE_KEYS = ("skill", "transitions")
+REQUIRED_STATE_KEYS = {"skill": "skill: <SkillName>",
+                       "transitions": "transitions: {success: <state or terminal>}"}
 
 MAX_FILE_BYTES = 256 * 1024
 """The largest FSA file read; a larger one is refused before it is parsed."""
@@ -588,12 +590,9 @@ class _Reader:
         assert top is not None
         for k, (kn, vn) in top.items():
             self.mark((k,), vn if k in ("start", "step_limit", "format") else kn)
-        for req in REQUIRED_TOP_LEVEL:
+        for req, example in REQUIRED_TOP_LEVEL.items():
             if req not in top:
-                example = {"format": "format: 1", "start": "start: <name of the first state>",
-                           "states": "states: {<name>: {skill: ..., transitions: {...}}}"}
-                self.fail(root, f"missing top-level key {req!r}", key=req,
-                          fix=f"add `{example[req]}`")
+                self.fail(root, f"missing top-level key {req!r}", key=req, fix=f"add `{example}`")
         if "format" in top:
             fnode = top["format"][1]
             fv = self.scalar(fnode)
@@ -668,12 +667,10 @@ class _Reader:
             return None
         # every value below that cannot be read is a problem noted, and read_format raises
         # them all: a state read in part is never used
-        for req in REQUIRED_STATE_KEYS:
+        for req, example in REQUIRED_STATE_KEYS.items():
             if req not in fields:
-                example = {"skill": "skill: <SkillName>",
-                           "transitions": "transitions: {success: <state or terminal>}"}
                 self.fail(node, f"missing key {req!r}", state=sname, key=req,
-                          fix=f"add `{example[req]}`")
+                          fix=f"add `{example}`")
         skill = ""
         if "skill" in fields:
             self.mark(("states", sname, "skill"), fields["skill"][1])
