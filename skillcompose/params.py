@@ -118,12 +118,11 @@ class ParamSpec:
             raise ParamError(bad)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ParamError(bad + " (a number)")
-        if self.kind == "int":
-            if isinstance(value, float):
-                if not value.is_integer():
-                    raise ParamError(bad + " (a whole number)")
-                value = int(value)
-        else:
+        if self.kind == "int" and isinstance(value, float):
+            if not value.is_integer():
+                raise ParamError(bad + " (a whole number)")
+            value = int(value)
+        elif self.kind == "float":
             value = float(value)
             if math.isnan(value):
                 raise ParamError(bad + " (not NaN)")
