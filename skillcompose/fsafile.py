@@ -191,24 +191,16 @@ class _GuardedParser(RoundTripParser):
         self.values = 0
         self.last_mark: Any = None
 
-    def _next(self) -> None:
-        """Produce the next event, if none is waiting, and inspect it once."""
-        if self.current_event is None and self.state:
-            self.current_event = self.state()
-            if self.current_event is not None:
-                self._inspect(self.current_event)
+    @property
+    def current_event(self) -> Any:
+        return self._event
 
-    def check_event(self, *choices: Any) -> bool:
-        self._next()
-        return bool(super().check_event(*choices))
-
-    def peek_event(self) -> Any:
-        self._next()
-        return super().peek_event()
-
-    def get_event(self) -> Any:
-        self._next()
-        return super().get_event()
+    @current_event.setter
+    def current_event(self, event: Any) -> None:
+        """The parser keeps each event it produces here: it is inspected once, on arrival."""
+        if event is not None:
+            self._inspect(event)
+        self._event = event
 
     def _inspect(self, event: Any) -> None:
         mark = self.last_mark = event.start_mark
