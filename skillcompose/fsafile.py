@@ -125,13 +125,11 @@ def load_fsa(path: str | os.PathLike[str]) -> FSA:
     except FileNotFoundError:
         raise FSAFileError([Problem("file not found", fix="check the path")], str(p)) from None
     except OSError as exc:
-        raise FSAFileError(
-            [Problem(f"cannot read the file: {exc.strerror or exc}")], str(p)
-        ) from None
+        problem = Problem(f"cannot read the file: {exc.strerror or exc}")
+        raise FSAFileError([problem], str(p)) from None
     if len(data) > MAX_FILE_BYTES:
-        line, col = _line_col(data[:MAX_FILE_BYTES].decode("utf-8", "replace"),
-                              MAX_FILE_BYTES)
-        raise FSAFileError([_too_large(line, col)], str(p))
+        head = data[:MAX_FILE_BYTES].decode("utf-8", "replace")
+        raise FSAFileError([_too_large(*_line_col(head, MAX_FILE_BYTES))], str(p))
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
