@@ -58,9 +58,8 @@ class Blackboard:
         self._types: dict[str, type | tuple[type, ...]] = dict(types or {})
         self._client: Access | None = None
         self._log: list[tuple[str, Any, Any]] | None = None
-        if initial:
-            for k, v in initial.items():
-                self[k] = v
+        for k, v in (initial or {}).items():
+            self[k] = v
 
     # -- mapping protocol with access checks --------------------------------------------
     def __getitem__(self, key: str) -> Any:
@@ -176,7 +175,7 @@ class Blackboard:
         out: dict[str, tuple[Any, Any]] = {}
         for key, old, new in log:
             out[key] = (out[key][0] if key in out else old, new)
-        return {k: v for k, v in out.items() if not _same(v[0], v[1])}
+        return {k: v for k, v in out.items() if not _same(*v)}
 
     def stop_log(self) -> None:
         self._log = None
@@ -184,15 +183,9 @@ class Blackboard:
 
 def diff(before: Mapping[str, Any], after: Mapping[str, Any]) -> dict[str, tuple[Any, Any]]:
     """``{key: (old, new)}`` for every key whose value differs between two snapshots."""
-    out: dict[str, tuple[Any, Any]] = {}
-    for k, v in after.items():
-        old = before.get(k, DELETED)
-        if not _same(old, v):
-            out[k] = (old, v)
-    for k, v in before.items():
-        if k not in after:
-            out[k] = (v, DELETED)
-    return out
+    changed = {k: (before.get(k, DELETED), v) for k, v in after.items()}
+    gone = {k: (v, DELETED) for k, v in before.items() if k not in after}
+    return {k: v for k, v in changed.items() if not _same(*v)} | gone
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -208,6 +201,4 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _type_name(t: type | tuple[type, ...]) -> str:
-    if isinstance(t, tuple):
-        return " | ".join(x.__name__ for x in t)
-    return t.__name__
+    return " | ".join(x.__name__ for x in (t if isinstance(t, tuple) else (t,)))

@@ -96,21 +96,15 @@ class Problem:
     column: int | None = None  # 1-based
 
     def render(self, path: str | Path | None = None) -> str:
-        where = ""
-        if path is not None:
-            where = str(path)
-            if self.line is not None:
-                where += f":{self.line}"
-                if self.column is not None:
-                    where += f":{self.column}"
-            where += ": "
-        text = where
-        if self.state is not None:
-            text += f"state {self.state}: "
-        text += self.message
-        if self.fix:
-            text += f"; {self.fix}"
-        return text
+        """``path:line:column: state S: message; fix``, each part there when known."""
+        where = "" if path is None else f"{path}{self._position()}: "
+        state = "" if self.state is None else f"state {self.state}: "
+        return f"{where}{state}{self.message}" + (f"; {self.fix}" if self.fix else "")
+
+    def _position(self) -> str:
+        if self.line is None:
+            return ""
+        return f":{self.line}" if self.column is None else f":{self.line}:{self.column}"
 
 
 class FSAValidationError(SkillcomposeError, ValueError):

@@ -23,13 +23,10 @@ while writing leaves at most such files, which the next writer may remove."""
 
 def umask() -> int:
     """The process's umask (read without changing it where the platform allows)."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError):
-        pass
+    with contextlib.suppress(OSError, ValueError), open("/proc/self/status", encoding="ascii") as f:
+        for line in f:
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
     mask = os.umask(0o022)  # no other way to read it: set and restore at once
     os.umask(mask)
     return mask

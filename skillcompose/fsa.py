@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -111,10 +110,8 @@ class FSA:
         """An FSA built without the structural checks, for code that builds valid FSAs by
         construction many times a second (evolution's compiler). Users build FSAs normally."""
         fsa = object.__new__(cls)
-        for key, value in (("states", states), ("start", start), ("terminals", terminals),
-                           ("step_limit", step_limit), ("name", name), ("meta", {}),
-                           ("source", None)):
-            object.__setattr__(fsa, key, value)
+        fsa.__dict__.update(states=states, start=start, terminals=terminals,
+                            step_limit=step_limit, name=name, meta={}, source=None)
         return fsa
 
     # -- identity ----------------------------------------------------------------------------
@@ -240,16 +237,13 @@ class FSA:
 
     def reachable(self) -> list[str]:
         """States reachable from the start, in breadth-first order."""
-        seen = {self.start}
         order = [self.start]
-        queue = deque(order)
-        while queue:
-            s = queue.popleft()
+        seen = set(order)
+        for s in order:  # the list grows as it is read: a breadth-first queue
             for t in self.successors(s):
                 if t not in seen:
                     seen.add(t)
                     order.append(t)
-                    queue.append(t)
         return order
 
     def unreachable(self) -> list[str]:
@@ -264,8 +258,7 @@ class FSA:
 
     def trap_states(self) -> list[str]:
         """States reachable from the start from which no terminal outcome can be reached: a
-        run that enters one ends in timeout (breadth-first order). The same as
-        :func:`skillcompose.graph.trap_states`, without networkx, for ``validate``."""
+        run that enters one ends in timeout (breadth-first order)."""
         predecessors: dict[str, list[str]] = {s: [] for s in self.states}
         ending = []
         for name, st in self.states.items():
@@ -275,12 +268,11 @@ class FSA:
                 elif target in self.terminals:
                     ending.append(name)
         can_end = set(ending)
-        queue = deque(ending)
-        while queue:
-            for p in predecessors[queue.popleft()]:
+        for s in ending:  # grows as it is read, as in reachable()
+            for p in predecessors[s]:
                 if p not in can_end:
                     can_end.add(p)
-                    queue.append(p)
+                    ending.append(p)
         return [s for s in self.reachable() if s not in can_end]
 
     def pruned(self) -> FSA:
@@ -297,13 +289,12 @@ class FSA:
 
     def with_params(self, state: str, **params: Any) -> FSA:
         st = self._state(state)
-        new = dataclasses.replace(st, params={**st.params, **params})
-        return self.replace(states={**self.states, state: new})
+        return self.with_state(state, dataclasses.replace(st, params={**st.params, **params}))
 
     def route(self, state: str, outcome: str, target: str) -> FSA:
         st = self._state(state)
-        new = dataclasses.replace(st, transitions={**st.transitions, outcome: target})
-        return self.replace(states={**self.states, state: new})
+        tr = {**st.transitions, outcome: target}
+        return self.with_state(state, dataclasses.replace(st, transitions=tr))
 
     def with_state(self, name: str, state: State) -> FSA:
         return self.replace(states={**self.states, name: state})
@@ -344,13 +335,11 @@ class FSA:
         """A straight line of states: each ``success`` goes to the next, the last ends in
         ``success``; every other outcome (known from ``registry``) ends in ``on_other``."""
         names = list(skills)
-        states: dict[str, State] = {}
         labels = [f"{s}_{i + 1}" for i, s in enumerate(names)]
-        for i, s in enumerate(names):
-            nxt = labels[i + 1] if i + 1 < len(names) else "success"
+        states: dict[str, State] = {}
+        for s, label, nxt in zip(names, labels, [*labels[1:], "success"], strict=False):
             outs = registry.spec(s).outcomes if registry is not None else ("success",)
-            tr = {o: (nxt if o == "success" else on_other) for o in outs}
-            states[labels[i]] = State(s, {}, tr)
+            states[label] = State(s, {}, {o: (nxt if o == "success" else on_other) for o in outs})
         return cls(states, labels[0], step_limit=step_limit, name=name)
 
 
@@ -365,6 +354,5 @@ def step_limit_problem(value: Any) -> Problem | None:
 
 def _fix_target(target: str, states: list[str], terminals: tuple[str, ...]) -> str:
     close = difflib.get_close_matches(str(target), states + list(terminals), n=1)
-    if close:
-        return f"did you mean {close[0]!r}?"
-    return f"use a state name or one of {list(terminals)}"
+    return f"did you mean {close[0]!r}?" if close else \
+        f"use a state name or one of {list(terminals)}"

@@ -65,7 +65,7 @@ from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
 from ruamel.yaml.representer import RoundTripRepresenter
 
-from .errors import FSAFileError, FSAValidationError, Problem, clip
+from .errors import FSAFileError, FSAValidationError, ParamError, Problem, UnknownSkillError, clip
 from .files import atomic_write
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step_limit_problem
 from .params import time_limit_problem
@@ -89,9 +89,11 @@ __all__ = [
 
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "start", "step_limit", "terminals", "states", "meta")
-REQUIRED_TOP_LEVEL = ("format", "start", "states")
+REQUIRED_TOP_LEVEL = {"format": "format: 1", "start": "start: <name of the first state>",
+                      "states": "states: {<name>: {skill: ..., transitions: {...}}}"}
 STATE_KEYS = ("skill", "params", "transitions", "time_limit")
-REQUIRED_STATE_KEYS = ("skill", "transitions")
+REQUIRED_STATE_KEYS = {"skill": "skill: <SkillName>",
+                       "transitions": "transitions: {success: <state or terminal>}"}
 
 MAX_FILE_BYTES = 256 * 1024
 """The largest FSA file read; a larger one is refused before it is parsed."""
@@ -123,13 +125,11 @@ def load_fsa(path: str | os.PathLike[str]) -> FSA:
     except FileNotFoundError:
         raise FSAFileError([Problem("file not found", fix="check the path")], str(p)) from None
     except OSError as exc:
-        raise FSAFileError(
-            [Problem(f"cannot read the file: {exc.strerror or exc}")], str(p)
-        ) from None
+        problem = Problem(f"cannot read the file: {exc.strerror or exc}")
+        raise FSAFileError([problem], str(p)) from None
     if len(data) > MAX_FILE_BYTES:
-        line, col = _line_col(data[:MAX_FILE_BYTES].decode("utf-8", "replace"),
-                              MAX_FILE_BYTES)
-        raise FSAFileError([_too_large(line, col)], str(p))
+        head = data[:MAX_FILE_BYTES].decode("utf-8", "replace")
+        raise FSAFileError([_too_large(*_line_col(head, MAX_FILE_BYTES))], str(p))
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -174,10 +174,6 @@ def _at(mark: Any, problem: Problem) -> Problem:
     return dataclasses.replace(problem, line=mark.line + 1, column=mark.column + 1)
 
 
-def _mark_problem(mark: Any, message: str, fix: str | None = None) -> Problem:
-    return _at(mark, Problem(message, fix=fix))
-
-
 class _GuardedParser(RoundTripParser):
     """The YAML parser with the format's limits checked on each event, before the
     (recursive) composer builds a node from it.
@@ -193,74 +189,59 @@ class _GuardedParser(RoundTripParser):
         self.values = 0
         self.last_mark: Any = None
 
-    def _next(self) -> None:
-        """Produce the next event, if none is waiting, and inspect it once."""
-        if self.current_event is None and self.state:
-            self.current_event = self.state()
-            if self.current_event is not None:
-                self._inspect(self.current_event)
+    @property
+    def current_event(self) -> Any:
+        return self._event
 
-    def check_event(self, *choices: Any) -> bool:
-        self._next()
-        return bool(super().check_event(*choices))
-
-    def peek_event(self) -> Any:
-        self._next()
-        return super().peek_event()
-
-    def get_event(self) -> Any:
-        self._next()
-        return super().get_event()
+    @current_event.setter
+    def current_event(self, event: Any) -> None:
+        """The parser keeps each event it produces here: it is inspected once, on arrival."""
+        if event is not None:
+            self._inspect(event)
+        self._event = event
 
     def _inspect(self, event: Any) -> None:
-        mark = event.start_mark
-        self.last_mark = mark
-        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
-            self.values += 1
-            if self.values > MAX_VALUES:
-                raise _Refused(_mark_problem(
-                    mark, f"the file holds more than {MAX_VALUES} values (names, numbers, "
-                    "lists and mappings)", fix=f"an FSA file has at most {MAX_STATES} "
-                    "states; split a large FSA into nested FSAs",
-                ))
-        if isinstance(event, CollectionStartEvent):
-            self.depth += 1
-            if self.depth > MAX_DEPTH:
-                raise _Refused(_mark_problem(
-                    mark, f"the data is nested more than {MAX_DEPTH} levels deep",
-                    fix="FSA files are shallow: a state is 4 levels deep; flatten this value",
-                ))
-        elif isinstance(event, CollectionEndEvent):
+        mark = self.last_mark = event.start_mark
+        if isinstance(event, CollectionEndEvent):
             self.depth -= 1
         elif isinstance(event, AliasEvent):
-            raise _Refused(_mark_problem(
-                mark, f"YAML aliases (*{event.anchor}) are not allowed in FSA files",
-                fix="write the value out in full",
-            ))
+            raise _Refused(_at(mark, Problem(
+                f"YAML aliases (*{event.anchor}) are not allowed in FSA files",
+                fix="write the value out in full")))
         elif isinstance(event, DocumentStartEvent):
             version = getattr(event, "version", None)
             if version is not None and tuple(version) != (1, 2):
-                self.problems.append(_mark_problem(
-                    mark, f"%YAML {'.'.join(map(str, version))} documents are not read: "
-                    "FSA files are YAML 1.2", fix="remove the %YAML line",
-                ))
-        if isinstance(event, (ScalarEvent, CollectionStartEvent)):
+                self.problems.append(_at(mark, Problem(
+                    f"%YAML {'.'.join(map(str, version))} documents are not read: "
+                    "FSA files are YAML 1.2", fix="remove the %YAML line")))
+        elif isinstance(event, (ScalarEvent, CollectionStartEvent)):
+            self.values += 1
+            if self.values > MAX_VALUES:
+                raise _Refused(_at(mark, Problem(
+                    f"the file holds more than {MAX_VALUES} values (names, numbers, lists "
+                    f"and mappings)", fix=f"an FSA file has at most {MAX_STATES} states; "
+                    "split a large FSA into nested FSAs")))
+            if isinstance(event, CollectionStartEvent):
+                self.depth += 1
+                if self.depth > MAX_DEPTH:
+                    raise _Refused(_at(mark, Problem(
+                        f"the data is nested more than {MAX_DEPTH} levels deep",
+                        fix="FSA files are shallow: a state is 4 levels deep; flatten this "
+                        "value")))
             if event.anchor is not None:
-                self.problems.append(_mark_problem(
-                    mark, f"YAML anchor &{event.anchor} is not allowed in FSA files",
-                    fix="remove the anchor and write each value out in full",
-                ))
+                self.problems.append(_at(mark, Problem(
+                    f"YAML anchor &{event.anchor} is not allowed in FSA files",
+                    fix="remove the anchor and write each value out in full")))
                 event.anchor = None  # reported: the composer need not keep (or warn about) it
             tag = _tag_text(event.tag)
             kind = ("scalar" if isinstance(event, ScalarEvent) else
                     "seq" if isinstance(event, SequenceStartEvent) else "map")
             if tag and tag != "!" and tag not in _EXPLICIT_TAGS[kind]:
                 allowed = ", ".join(sorted(_short_tag(t) for t in _EXPLICIT_TAGS[kind]))
-                self.problems.append(_mark_problem(
-                    mark, f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
+                self.problems.append(_at(mark, Problem(
+                    f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
                     f"data: no code, and on a {_KIND_NAMES[kind]} only {allowed})",
-                    fix=f"remove {_short_tag(tag)}",
-                ))
+                    fix=f"remove {_short_tag(tag)}")))
 
 
 def _tag_text(tag: Any) -> str:
@@ -545,11 +526,9 @@ class _Reader:
             raise FSAFileError([exc.problem], self.path) from None
         self.raise_if_problems()
         if root is None:
-            self.problems.append(Problem(
+            raise FSAFileError([Problem(
                 "the file is empty", fix="an FSA file needs `format: 1`, `start:` and "
-                "`states:`", line=1, column=1))
-            self.raise_if_problems()
-        assert root is not None
+                "`states:`", line=1, column=1)], self.path)
         self.check_tree(root, yaml.constructor)
         self.raise_if_problems()
         return self.read_format(root)
@@ -562,12 +541,9 @@ class _Reader:
         _check_directives(self.text)
         yaml = YAML(typ="rt")
         yaml.Parser = _GuardedParser
-        parser: _GuardedParser | None = None
+        parser: _GuardedParser = yaml.parser
         try:
-            parser = yaml.parser
             root = yaml.compose(self.text)
-        except _Refused:
-            raise
         except MarkedYAMLError as exc:
             mark = exc.problem_mark or exc.context_mark
             line = mark.line + 1 if mark is not None else 1
@@ -588,7 +564,7 @@ class _Reader:
             )) from None
         except (YAMLError, RecursionError, ValueError, TypeError, LookupError,
                 AttributeError, AssertionError) as exc:  # the YAML library's own slips
-            mark = parser.last_mark if parser is not None else None
+            mark = parser.last_mark
             line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
             raise _Refused(Problem(
                 f"not valid YAML: {type(exc).__name__}: {clip(str(exc), 80)}",
@@ -604,12 +580,9 @@ class _Reader:
         assert top is not None
         for k, (kn, vn) in top.items():
             self.mark((k,), vn if k in ("start", "step_limit", "format") else kn)
-        for req in REQUIRED_TOP_LEVEL:
+        for req, example in REQUIRED_TOP_LEVEL.items():
             if req not in top:
-                example = {"format": "format: 1", "start": "start: <name of the first state>",
-                           "states": "states: {<name>: {skill: ..., transitions: {...}}}"}
-                self.fail(root, f"missing top-level key {req!r}", key=req,
-                          fix=f"add `{example[req]}`")
+                self.fail(root, f"missing top-level key {req!r}", key=req, fix=f"add `{example}`")
         if "format" in top:
             fnode = top["format"][1]
             fv = self.scalar(fnode)
@@ -682,20 +655,17 @@ class _Reader:
                               "`time_limit:`")
         if fields is None:
             return None
-        ok = True
-        for req in REQUIRED_STATE_KEYS:
+        # every value below that cannot be read is a problem noted, and read_format raises
+        # them all: a state read in part is never used
+        for req, example in REQUIRED_STATE_KEYS.items():
             if req not in fields:
-                example = {"skill": "skill: <SkillName>",
-                           "transitions": "transitions: {success: <state or terminal>}"}
                 self.fail(node, f"missing key {req!r}", state=sname, key=req,
-                          fix=f"add `{example[req]}`")
-                ok = False
+                          fix=f"add `{example}`")
         skill = ""
         if "skill" in fields:
             self.mark(("states", sname, "skill"), fields["skill"][1])
             skill = self.string(fields["skill"][1], "skill", state=sname, key="skill",
                                 fix="write the skill's name, e.g. `skill: GraspObject`") or ""
-            ok = ok and bool(skill)
         params: dict[str, Any] = {}
         if "params" in fields:
             pnode = fields["params"][1]
@@ -716,33 +686,24 @@ class _Reader:
                     self.fail(pv, f"parameter {pname!r} must be a single value (number, "
                               "true/false or text) or, for a vector parameter, a flat list "
                               f"of numbers; got {_node_kind(pv)}", state=sname, key=pname)
-                    ok = False
         transitions: dict[str, str] = {}
         if "transitions" in fields:
             self.mark(("states", sname, "transitions"), fields["transitions"][0])
             tmap = self.mapping(fields["transitions"][1], f"state {sname} transitions", None,
                                 state=sname, fix="write `transitions: {outcome: target}`")
-            if tmap is None:
-                ok = False
             for outcome, (_, tv) in (tmap or {}).items():
                 self.mark(("states", sname, "transitions", outcome), tv)
-                target = self.string(tv, f"the target of outcome {outcome!r}", state=sname,
-                                     key=outcome, fix="write a state name or a terminal "
-                                     "outcome such as success")
-                if target is None:
-                    ok = False
-                    continue
-                transitions[outcome] = target
+                transitions[outcome] = self.string(
+                    tv, f"the target of outcome {outcome!r}", state=sname, key=outcome,
+                    fix="write a state name or a terminal outcome such as success") or ""
         time_limit: float | None = None
         if "time_limit" in fields:
             tnode = fields["time_limit"][1]
             self.mark(("states", sname, "time_limit"), tnode)
             value = self.scalar(tnode)
-            if self.report(tnode, time_limit_problem(value, sname)):
-                ok = False
-            else:
+            if not self.report(tnode, time_limit_problem(value, sname)):
                 time_limit = float(value)
-        return State(skill, params, transitions, time_limit) if ok else None
+        return State(skill, params, transitions, time_limit)
 
 
 def _node_kind(node: Node) -> str:
@@ -853,20 +814,11 @@ def _py(value: Any) -> Any:
     return value
 
 
-def _flow_list(items: list[Any]) -> CommentedSeq:
-    seq = CommentedSeq(items)
-    seq.fa.set_flow_style()
-    return seq
-
-
 def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | None:
-    if registry is None or skill not in registry:
-        return None
     try:
-        spec = registry.spec(skill).param(pname)
-    except Exception:
+        return None if registry is None else registry.spec(skill).param(pname).describe_range()
+    except (UnknownSkillError, ParamError):  # not the registry's: no comment
         return None
-    return spec.describe_range()
 
 
 def _state_map(st: State, registry: Registry | None) -> CommentedMap:
@@ -902,7 +854,8 @@ def _set(m: CommentedMap, key: str, value: Any) -> None:
     if key in m and _equal(_py(m[key]), value) and _emits_exactly(m[key]):
         return
     if isinstance(value, list):  # terminals, vector parameters: one line (or a few)
-        value = _flow_list(value)
+        value = CommentedSeq(value)
+        value.fa.set_flow_style()
     m[key] = value
 
 
@@ -924,20 +877,25 @@ def _emits_exactly(v: Any) -> bool:
 def _equal(a: Any, b: Any) -> bool:
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
-    return bool(a == b and type(a) is type(b)) or (
-        isinstance(a, (dict, list)) and a == b
-    )
+    return bool(a == b) and (type(a) is type(b) or isinstance(a, (dict, list)))
 
 
 def _rename_key(m: CommentedMap, old: str, new: str) -> None:
-    keys = list(m.keys())
-    pos = keys.index(old)
+    pos = list(m).index(old)
     value = m[old]
     comment = m.ca.items.pop(old, None)
     del m[old]
     m.insert(pos, new, value)
     if comment is not None:
         m.ca.items[new] = comment
+
+
+def _child_map(m: CommentedMap, key: str) -> CommentedMap:
+    """``m[key]``, made an empty mapping first unless it is one."""
+    child = m.get(key)
+    if not isinstance(child, CommentedMap):
+        child = m[key] = CommentedMap()
+    return child
 
 
 def _sync_map(m: CommentedMap, values: Mapping[str, Any]) -> None:
@@ -958,10 +916,7 @@ def _sync_document(
         _set(doc, "step_limit", fsa.step_limit)
     if fsa.terminals != DEFAULT_TERMINALS or "terminals" in doc:
         _set(doc, "terminals", list(fsa.terminals))
-    states = doc.get("states")
-    if not isinstance(states, CommentedMap):
-        states = CommentedMap()
-        doc["states"] = states
+    states = _child_map(doc, "states")
     for old, new in renames.items():
         if old in states and new not in states:
             _rename_key(states, old, new)
@@ -988,11 +943,7 @@ def _sync_state(cur: CommentedMap, st: State) -> None:
             cur.insert(list(cur.keys()).index("skill") + 1 if "skill" in cur else 0,
                        "params", pm)
         _sync_map(pm, st.params)
-    tm = cur.get("transitions")
-    if not isinstance(tm, CommentedMap):
-        tm = CommentedMap()
-        cur["transitions"] = tm
-    _sync_map(tm, st.transitions)
+    _sync_map(_child_map(cur, "transitions"), st.transitions)
     if st.time_limit is not None:
         _set(cur, "time_limit", st.time_limit)
     elif "time_limit" in cur:

@@ -39,11 +39,6 @@ def to_networkx(fsa: FSA) -> Any:
 
 
 def trap_states(fsa: FSA) -> list[str]:
-    """States reachable from the start from which no terminal outcome is reachable."""
-    g = to_networkx(fsa)
-    can_end: set[str] = set()
-    for t in fsa.terminals:
-        node = terminal_node(t)
-        can_end |= nx.ancestors(g, node)
-    reach = fsa.reachable()
-    return [s for s in reach if s not in can_end]
+    """States reachable from the start from which no terminal outcome is reachable (the one
+    search of :meth:`FSA.trap_states <skillcompose.fsa.FSA.trap_states>`)."""
+    return fsa.trap_states()

@@ -42,11 +42,9 @@ class FSASkill(Skill):
     def compiled(self, backend: str | None = None) -> CompiledFSA:
         """The nested FSA compiled for ``backend`` (once per backend)."""
         be = backend or self.registry.backend
-        child = self._compiled.get(be)
-        if child is None:
-            child = compile_fsa(self.fsa, self.registry, be)
-            self._compiled[be] = child
-        return child
+        if be not in self._compiled:
+            self._compiled[be] = compile_fsa(self.fsa, self.registry, be)
+        return self._compiled[be]
 
     def starter(self, backend: str | None = None) -> Starter:
         child = self.compiled(backend)

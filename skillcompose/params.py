@@ -118,12 +118,11 @@ class ParamSpec:
             raise ParamError(bad)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ParamError(bad + " (a number)")
-        if self.kind == "int":
-            if isinstance(value, float):
-                if not value.is_integer():
-                    raise ParamError(bad + " (a whole number)")
-                value = int(value)
-        else:
+        if self.kind == "int" and isinstance(value, float):
+            if not value.is_integer():
+                raise ParamError(bad + " (a whole number)")
+            value = int(value)
+        elif self.kind == "float":
             value = float(value)
             if math.isnan(value):
                 raise ParamError(bad + " (not NaN)")
@@ -274,31 +273,24 @@ def make_param_spec(
             doc=decl.doc if isinstance(decl, Choice) else "",
         )
     elif base_type is bool or (decl is None and isinstance(default, bool)):
-        spec = ParamSpec(name, "bool", default, doc="")
-    elif isinstance(decl, Param) and decl.size is not None:
-        if isinstance(decl.size, bool) or not isinstance(decl.size, int) or decl.size < 1:
-            raise ParamError(f"{where}: size must be a whole number >= 1, got {decl.size!r}")
-        if base_type not in (None, tuple, list) and get_origin(base_type) not in (tuple, list):
-            raise ParamError(
-                f"{where}: a vector parameter (size={decl.size}) is annotated "
-                f"`Annotated[tuple[float, ...], Param(low, high, size={decl.size})]`, "
-                f"got {base_type!r}"
-            )
-        _check_range(decl, where)
-        spec = ParamSpec(
-            name, "float", default, low=float(decl.low), high=float(decl.high),
-            unit=decl.unit, scale=decl.scale, doc=decl.doc, size=decl.size,
-        )
+        spec = ParamSpec(name, "bool", default)
     elif isinstance(decl, Param):
-        kind: ParamKind
-        if base_type is int or (base_type is None and isinstance(default, int)):
-            kind = "int"
-        else:
-            kind = "float"
+        if decl.size is not None:  # a vector of floats
+            if isinstance(decl.size, bool) or not isinstance(decl.size, int) or decl.size < 1:
+                raise ParamError(f"{where}: size must be a whole number >= 1, got {decl.size!r}")
+            if base_type not in (None, tuple, list) and \
+                    get_origin(base_type) not in (tuple, list):
+                raise ParamError(
+                    f"{where}: a vector parameter (size={decl.size}) is annotated "
+                    f"`Annotated[tuple[float, ...], Param(low, high, size={decl.size})]`, "
+                    f"got {base_type!r}"
+                )
+        whole = base_type is int or (base_type is None and isinstance(default, int))
         _check_range(decl, where)
         spec = ParamSpec(
-            name, kind, default, low=float(decl.low), high=float(decl.high),
-            unit=decl.unit, scale=decl.scale, doc=decl.doc,
+            name, "int" if whole and decl.size is None else "float", default,
+            low=float(decl.low), high=float(decl.high), unit=decl.unit, scale=decl.scale,
+            doc=decl.doc, size=decl.size,
         )
     else:
         raise ParamError(
@@ -324,9 +316,4 @@ def _repr(value: Any) -> str:
     return clip(repr(value), 60)
 
 
-class _Missing:
-    def __repr__(self) -> str:
-        return "<missing>"
-
-
-_MISSING: Any = _Missing()
+_MISSING: Any = object()  # the default of a parameter declared without one (None is a value)

@@ -104,15 +104,10 @@ class Registry:
                     "@skill, or define register(registry)"
                 )
             for s in found:
-                if s.backend not in self._impls.get(s.name, {}) or \
-                        self._impls[s.name][s.backend] is not s:
+                if self._impls.get(s.name, {}).get(s.backend) is not s:
                     self.add(s)
-        return [
-            self._impls[n][b]
-            for n, impls in self._impls.items()
-            for b in impls
-            if (n, b) not in before
-        ]
+        return [s for n, impls in self._impls.items() for b, s in impls.items()
+                if (n, b) not in before]
 
     def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> list[Skill]:
         """Add the skills of every installed package that advertises them in ``group``."""
