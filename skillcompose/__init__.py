@@ -9,202 +9,100 @@ The public API; examples and user code import from here::
 from __future__ import annotations
 
 import importlib
+import re
 import sys
 import types
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from .activation import RUNNING, Activation
-    from .blackboard import DELETED, Access, Blackboard, diff
-    from .errors import (
-        BlackboardAccessError,
-        BlackboardKeyError,
-        BlackboardTypeError,
-        FSAFileError,
-        FSAValidationError,
-        ParamError,
-        Problem,
-        RegistryError,
-        SkillcomposeError,
-        SkillDefinitionError,
-        SkillProtocolError,
-        UndeclaredOutcomeError,
-        UnknownSkillError,
-    )
-    from .executor import (
-        CompiledFSA,
-        FSARun,
-        RunResult,
-        TraceStep,
-        compile_fsa,
-        run_fsa,
-        run_ticking,
-        summarize,
-        trial_rngs,
-        trial_seeds,
-    )
-    from .fsa import (
-        DEFAULT_STEP_LIMIT,
-        DEFAULT_TERMINALS,
-        ERROR,
-        FSA,
-        PREEMPTED,
-        TIMEOUT,
-        State,
-    )
-    from .fsafile import dumps_fsa, load_fsa, loads_fsa, save_fsa
-    from .nested import FSASkill, fsa_skill
-    from .params import Choice, Param, ParamSpec
-    from .registry import Registry
-    from .skill import Skill, SkillSpec, skill
-    from .task import Task, TaskError, TaskRef, Trial, load_task, trials
-
-# Each public name and the module that defines it: the package imports that module when the
-# name is first used (``from skillcompose import FSA`` imports skillcompose.fsa), so that
-# importing one module of the package (``skillcompose --help`` imports skillcompose.cli)
-# does not load the whole runtime and numpy.
-_HOMES = {
-    "Access": ".blackboard",
-    "Activation": ".activation",
-    "Blackboard": ".blackboard",
-    "BlackboardAccessError": ".errors",
-    "BlackboardKeyError": ".errors",
-    "BlackboardTypeError": ".errors",
-    "Choice": ".params",
-    "CompiledFSA": ".executor",
-    "DEFAULT_STEP_LIMIT": ".fsa",
-    "DEFAULT_TERMINALS": ".fsa",
-    "DELETED": ".blackboard",
-    "ERROR": ".fsa",
-    "FSA": ".fsa",
-    "FSAFileError": ".errors",
-    "FSARun": ".executor",
-    "FSASkill": ".nested",
-    "FSAValidationError": ".errors",
-    "PREEMPTED": ".fsa",
-    "Param": ".params",
-    "ParamError": ".errors",
-    "ParamSpec": ".params",
-    "Problem": ".errors",
-    "RUNNING": ".activation",
-    "Registry": ".registry",
-    "RegistryError": ".errors",
-    "RunResult": ".executor",
-    "Skill": ".skill",
-    "SkillDefinitionError": ".errors",
-    "SkillProtocolError": ".errors",
-    "SkillSpec": ".skill",
-    "SkillcomposeError": ".errors",
-    "State": ".fsa",
-    "TIMEOUT": ".fsa",
-    "Task": ".task",
-    "TaskError": ".task",
-    "TaskRef": ".task",
-    "TraceStep": ".executor",
-    "Trial": ".task",
-    "UndeclaredOutcomeError": ".errors",
-    "UnknownSkillError": ".errors",
-    "compile_fsa": ".executor",
-    "diff": ".blackboard",
-    "dumps_fsa": ".fsafile",
-    "fsa_skill": ".nested",
-    "load_fsa": ".fsafile",
-    "load_task": ".task",
-    "loads_fsa": ".fsafile",
-    "run_fsa": ".executor",
-    "run_ticking": ".executor",
-    "save_fsa": ".fsafile",
-    "skill": ".skill",
-    "summarize": ".executor",
-    "trial_rngs": ".executor",
-    "trial_seeds": ".executor",
-    "trials": ".task",
-}
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "DEFAULT_STEP_LIMIT",
-    "DEFAULT_TERMINALS",
-    "DELETED",
-    "ERROR",
-    "FSA",
-    "PREEMPTED",
-    "RUNNING",
-    "TIMEOUT",
-    "Access",
-    "Activation",
-    "Blackboard",
-    "BlackboardAccessError",
-    "BlackboardKeyError",
-    "BlackboardTypeError",
-    "Choice",
-    "CompiledFSA",
-    "FSAFileError",
-    "FSARun",
-    "FSASkill",
-    "FSAValidationError",
-    "Param",
-    "ParamError",
-    "ParamSpec",
-    "Problem",
-    "Registry",
-    "RegistryError",
-    "RunResult",
-    "Skill",
-    "SkillDefinitionError",
-    "SkillProtocolError",
-    "SkillSpec",
-    "SkillcomposeError",
-    "State",
-    "Task",
-    "TaskError",
-    "TaskRef",
-    "TraceStep",
-    "Trial",
-    "UndeclaredOutcomeError",
-    "UnknownSkillError",
-    "__version__",
-    "compile_fsa",
-    "diff",
-    "dumps_fsa",
-    "fsa_skill",
-    "load_fsa",
-    "load_task",
-    "loads_fsa",
-    "run_fsa",
-    "run_ticking",
-    "save_fsa",
-    "skill",
-    "summarize",
-    "trial_rngs",
-    "trial_seeds",
-    "trials",
-]
+if TYPE_CHECKING:
+    from .activation import RUNNING as RUNNING
+    from .activation import Activation as Activation
+    from .blackboard import DELETED as DELETED
+    from .blackboard import Access as Access
+    from .blackboard import Blackboard as Blackboard
+    from .blackboard import diff as diff
+    from .errors import BlackboardAccessError as BlackboardAccessError
+    from .errors import BlackboardKeyError as BlackboardKeyError
+    from .errors import BlackboardTypeError as BlackboardTypeError
+    from .errors import FSAFileError as FSAFileError
+    from .errors import FSAValidationError as FSAValidationError
+    from .errors import ParamError as ParamError
+    from .errors import Problem as Problem
+    from .errors import RegistryError as RegistryError
+    from .errors import SkillcomposeError as SkillcomposeError
+    from .errors import SkillDefinitionError as SkillDefinitionError
+    from .errors import SkillProtocolError as SkillProtocolError
+    from .errors import UndeclaredOutcomeError as UndeclaredOutcomeError
+    from .errors import UnknownSkillError as UnknownSkillError
+    from .executor import CompiledFSA as CompiledFSA
+    from .executor import FSARun as FSARun
+    from .executor import RunResult as RunResult
+    from .executor import TraceStep as TraceStep
+    from .executor import compile_fsa as compile_fsa
+    from .executor import run_fsa as run_fsa
+    from .executor import run_ticking as run_ticking
+    from .executor import summarize as summarize
+    from .executor import trial_rngs as trial_rngs
+    from .executor import trial_seeds as trial_seeds
+    from .fsa import DEFAULT_STEP_LIMIT as DEFAULT_STEP_LIMIT
+    from .fsa import DEFAULT_TERMINALS as DEFAULT_TERMINALS
+    from .fsa import ERROR as ERROR
+    from .fsa import FSA as FSA
+    from .fsa import PREEMPTED as PREEMPTED
+    from .fsa import TIMEOUT as TIMEOUT
+    from .fsa import State as State
+    from .fsafile import dumps_fsa as dumps_fsa
+    from .fsafile import load_fsa as load_fsa
+    from .fsafile import loads_fsa as loads_fsa
+    from .fsafile import save_fsa as save_fsa
+    from .nested import FSASkill as FSASkill
+    from .nested import fsa_skill as fsa_skill
+    from .params import Choice as Choice
+    from .params import Param as Param
+    from .params import ParamSpec as ParamSpec
+    from .registry import Registry as Registry
+    from .skill import Skill as Skill
+    from .skill import SkillSpec as SkillSpec
+    from .skill import skill as skill
+    from .task import Task as Task
+    from .task import TaskError as TaskError
+    from .task import TaskRef as TaskRef
+    from .task import Trial as Trial
+    from .task import load_task as load_task
+    from .task import trials as trials
+else:
+    # Each public name is imported with its module when it is first used (``from
+    # skillcompose import FSA`` imports skillcompose.fsa), so that importing one module of the
+    # package (``skillcompose --help`` imports skillcompose.cli) does not load the whole runtime
+    # and numpy. The names and their modules are read from the imports above, which only the
+    # type checker runs (one ``from .module import Name as Name`` a line, as isort keeps them).
+    _HOMES = {
+        name: f".{module}"
+        for module, name in re.findall(
+            r"^    from \.(\w+) import (\w+) as \2$", Path(__file__).read_text("utf-8"), re.M
+        )
+    }
+    __all__ = [*_HOMES, "__version__"]
 
+    def __getattr__(name: str) -> Any:
+        if name not in _HOMES:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(_HOMES[name], __name__), name)
+        globals()[name] = value  # later uses skip this function
+        return value
 
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(home, __name__), name)
-    globals()[name] = value  # later uses skip this function
-    return value
+    def __dir__() -> list[str]:
+        return sorted(set(globals()) | set(__all__))
 
+    class _Package(types.ModuleType):
+        """``skill`` names both the decorator and the module ``skillcompose.skill``; importing
+        that module sets the package's attribute to it, which this class ignores."""
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+        def __setattr__(self, name: str, value: Any) -> None:
+            if not (name in _HOMES and isinstance(value, types.ModuleType)):
+                super().__setattr__(name, value)
 
-
-class _Package(types.ModuleType):
-    """The package's module object. ``skill`` names both the decorator and the module
-    ``skillcompose.skill``; importing that module would set the package's ``skill`` to the
-    module, so a public name is never replaced by a submodule (``sys.modules`` keeps it)."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name in _HOMES and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
+    sys.modules[__name__].__class__ = _Package

@@ -151,9 +151,8 @@ class ThreadActivation:
         self._hook = hook
         staged = Blackboard(types=bb.types)
         data = bb._data
-        for k in access.reads | access.writes:
-            if k in data:
-                staged._data[k] = copy.deepcopy(data[k])
+        staged._data.update({k: copy.deepcopy(data[k]) for k in access.reads | access.writes
+                             if k in data})
         staged._client = access
         staged.start_log()
         self._staged = staged

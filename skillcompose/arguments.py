@@ -131,9 +131,7 @@ def setting(text: str) -> str:
 def _writable_place(path: Path) -> str | None:
     """Why files cannot be created at ``path`` (a directory to be), or None."""
     probe = path
-    while not probe.exists():
-        if probe.parent == probe:
-            break
+    while not probe.exists() and probe.parent != probe:
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
         return f"{probe} is a file, not a directory"
@@ -185,9 +183,7 @@ def existing_dir(text: str) -> str:
     return text
 
 
-# ---------------------------------------------------------------------------------------
-# options every subcommand shares
-# ---------------------------------------------------------------------------------------
+# -- options every subcommand shares -------------------------------------------------------
 def add_output_options(p: argparse.ArgumentParser, *, top: bool = False) -> None:
     """``-q/--quiet`` and ``-v/--verbose``: accepted before and after the subcommand, with
     one meaning everywhere. ``-q``: standard output keeps the result, standard error only
@@ -216,9 +212,7 @@ def add_json_option(p: argparse.ArgumentParser) -> None:
 
 def verbosity(args: argparse.Namespace) -> int:
     """-1 with ``-q``, else the number of ``-v`` given (0 by default)."""
-    if getattr(args, "quiet", False):
-        return -1
-    return int(getattr(args, "verbose", 0) or 0)
+    return -1 if getattr(args, "quiet", False) else int(getattr(args, "verbose", 0) or 0)
 
 
 def note(args: argparse.Namespace, text: str, *, level: int = 0) -> None:

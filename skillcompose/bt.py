@@ -51,9 +51,7 @@ class BridgeError(SkillcomposeError, ValueError):
     """A behaviour-tree bridge is configured wrongly (namespace, key map, status map)."""
 
 
-# ---------------------------------------------------------------------------------------
-# blackboard bridge
-# ---------------------------------------------------------------------------------------
+# -- blackboard bridge ---------------------------------------------------------------------
 class BlackboardBridge:
     """Copies declared keys between a skillcompose :class:`Blackboard` and py_trees'.
 
@@ -143,9 +141,7 @@ def _namespace(ns: str, owner: str) -> str:
     return ns
 
 
-# ---------------------------------------------------------------------------------------
-# FSA and skill as behaviours
-# ---------------------------------------------------------------------------------------
+# -- FSA and skill as behaviours -----------------------------------------------------------
 _STATUS = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE}
 
 
@@ -214,13 +210,11 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
         self.fsa_run: FSARun | None = None
         self.last_result: RunResult | None = None
         self.activations = 0
-        self._views: dict[str, _StateView] = {}
-        if show_states:
-            for sname in compiled.names:
-                view = _StateView(sname, compiled.fsa.states[sname])
-                view.parent = self
-                self.children.append(view)
-                self._views[sname] = view
+        states = compiled.fsa.states
+        self._views = {s: _StateView(s, states[s]) for s in compiled.names} if show_states else {}
+        for view in self._views.values():
+            view.parent = self
+            self.children.append(view)
 
     def initialise(self) -> None:
         rng = np.random.default_rng(self._seeds.spawn(1)[0])
@@ -261,15 +255,14 @@ class FSABehaviour(py_trees.behaviour.Behaviour):
 
     def _show(self, running: str | None, last: str | None = None) -> None:
         for sname, view in self._views.items():
+            view.feedback_message = ""
             if sname == running:
                 view.status = Status.RUNNING
             elif sname == last and self.last_result is not None:
                 view.status = self.status_map.get(self.last_result.outcome, Status.FAILURE)
                 view.feedback_message = f"ended: {self.last_result.outcome}"
-                continue
             else:
                 view.status = Status.INVALID
-            view.feedback_message = ""
 
 
 class _StateView(py_trees.behaviour.Behaviour):
@@ -358,9 +351,7 @@ class SkillBehaviour(FSABehaviour):
         )
 
 
-# ---------------------------------------------------------------------------------------
-# tree as a skill
-# ---------------------------------------------------------------------------------------
+# -- tree as a skill -----------------------------------------------------------------------
 TreeSource = py_trees.behaviour.Behaviour | Callable[[], py_trees.behaviour.Behaviour]
 
 
@@ -404,6 +395,9 @@ class TreeSkill(Skill):
         return _TreeActivation(self, root, bb)
 
 
+_OUTCOMES = {Status.RUNNING: RUNNING, Status.SUCCESS: "success", Status.FAILURE: "failure"}
+
+
 class _TreeActivation:
     __slots__ = ("bb", "root", "skill")
 
@@ -420,12 +414,8 @@ class _TreeActivation:
         self.root.tick_once()
         bridge.pull(self.bb)
         st = self.root.status
-        if st == Status.RUNNING:
-            return RUNNING
-        if st == Status.SUCCESS:
-            return "success"
-        if st == Status.FAILURE:
-            return "failure"
+        if st in _OUTCOMES:
+            return _OUTCOMES[st]
         raise SkillProtocolError(
             f"skill {self.skill.name}: tree {self.root.name} ended with status {st}; a tree "
             "skill must end with SUCCESS or FAILURE"

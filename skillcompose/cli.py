@@ -8,8 +8,8 @@ Conventions every subcommand follows (those added by other packages too): ``-q``
 are accepted before and after the subcommand with one meaning (see
 :func:`skillcompose.arguments.add_output_options`; :func:`build_parser` adds them to every
 subcommand); a command with a result document takes ``--json`` and then prints one JSON
-document on standard output and nothing else there. A module named in
-:data:`SUBCOMMAND_MODULES` must import quickly: heavy packages (Pinocchio, CasADi,
+document on standard output and nothing else there. This module and each one named
+in :data:`SUBCOMMAND_MODULES` must import quickly: heavy packages (Pinocchio, CasADi,
 matplotlib, Ray) are imported by the command that needs them, not by ``register_cli``, so
 that ``skillcompose --help`` and ``skillcompose validate`` answer at once.
 """
@@ -39,14 +39,11 @@ from .arguments import (
     setting,
     whole,
 )
-from .errors import FSAValidationError, Problem, SkillcomposeError
+from .errors import FSAValidationError, SkillcomposeError
 
 if TYPE_CHECKING:
     from .registry import Registry
     from .task import Task
-
-# The runtime (numpy, the executor, the file reader, tasks) is imported by the command that
-# runs, so that `skillcompose --help` answers at once.
 
 __all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
 
@@ -168,12 +165,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         note(args, f"{prog}: exit status {status} after {time.perf_counter() - started:.2f} s",
              level=1)
         return status
-    except FSAValidationError as exc:
-        if getattr(args, "json", False) and args.command == "validate":
-            print_json(_invalid_document(args.file, exc))
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return 2
     except SkillcomposeError as exc:
+        if isinstance(exc, FSAValidationError) and args.command == "validate" and args.json:
+            print_json(_invalid_document(args.file, exc))
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -250,12 +244,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SkillcomposeError(
             f"{args.file}: no skills loaded; give --skills MODULE or --task TASK"
         )
-    try:  # with a task, the task's step limit (as in evolution); else the file's
-        compiled = task.compile(fsa, args.backend) if task is not None else \
-            compile_fsa(fsa, registry, args.backend)
-    except SkillcomposeError as exc:
-        raise SkillcomposeError(str(exc)) from None
-    step_limit = task.step_limit if task is not None else fsa.step_limit
+    # with a task, the task's step limit (as in evolution); else the file's
+    compiled = task.compile(fsa, args.backend) if task is not None else \
+        compile_fsa(fsa, registry, args.backend)
     if task is not None and fsa.step_limit != task.step_limit:
         note(args, f"{args.file}: step limit {task.step_limit} from task {task.name} (the "
              f"file's {fsa.step_limit} applies when it runs without --task)")
@@ -272,8 +263,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         bar.update(1)
         result = trial.result
         results.append(result)
-        if task is not None:
-            fitness.append(trial.fitness)
+        fitness.append(trial.fitness)  # nan without a task
         if result.trace is not None:
             _print_trace(result, trace_out)
         if result.error is not None and args.trace and trial.number == 0:
@@ -281,19 +271,17 @@ def cmd_run(args: argparse.Namespace) -> int:
             traceback.print_exception(result.error, file=sys.stderr)
     bar.close()
     s = summarize(results)
-    errors = [(k, r) for k, r in enumerate(results) if r.error is not None]
-    if getattr(args, "json", False):
-        first: dict[str, Any] | None = None
+    errors = [(k, r.last_state, r.error) for k, r in enumerate(results) if r.error is not None]
+    arr = np.asarray(fitness)
+    if as_json:
+        first = None
         if errors:
-            k, r = errors[0]
-            assert r.error is not None
-            first = {"run": k, "state": r.last_state,
-                     "error": f"{type(r.error).__name__}: {r.error}"}
-        arr = np.asarray(fitness)
+            k, state, exc = errors[0]
+            first = {"run": k, "state": state, "error": f"{type(exc).__name__}: {exc}"}
         print_json({
             "command": "run", "file": args.file, "seed": args.seed, "trials": s["trials"],
             "backend": compiled.backend, "task": task.name if task is not None else None,
-            "step_limit": step_limit, "outcomes": s["outcomes"],
+            "step_limit": compiled.step_limit, "outcomes": s["outcomes"],
             "mean_steps": s["mean_steps"],
             "fitness": None if task is None else {
                 "mean": float(arr.mean()), "std": float(arr.std()),
@@ -308,15 +296,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"  {outcome:<{width}}  {count:>7}  {100.0 * count / s['trials']:6.2f}%")
         print(f"  mean steps {s['mean_steps']:.2f}")
         if task is not None:
-            arr = np.asarray(fitness)
             print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
                   f"({'lower' if task.minimize else 'higher'} is better)")
     if errors and not args.trace:
-        k, first_result = errors[0]
-        assert first_result.error is not None
+        k, state, exc = errors[0]
         print(
             f"  {len(errors)} run(s) ended in error; the first (run {k}) in state "
-            f"{first_result.last_state}: {error_summary(first_result.error)}\n"
+            f"{state}: {error_summary(exc)}\n"
             "  rerun with --trace for the whole traceback",
             file=sys.stderr,
         )
@@ -327,10 +313,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_trace(result: Any, out: Any = None) -> None:
+def _print_trace(result: Any, out: Any) -> None:
     from .display import short_value as _short
 
-    out = out if out is not None else sys.stdout
     for ev in result.trace:
         print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}",
               file=out)
@@ -339,16 +324,12 @@ def _print_trace(result: Any, out: Any = None) -> None:
     print(f"ended: {result.outcome} after {result.steps} step(s)", file=out)
 
 
-def _problem_document(problem: Problem) -> dict[str, Any]:
-    return {"line": problem.line, "column": problem.column, "state": problem.state,
-            "key": problem.key, "message": problem.message, "fix": problem.fix}
-
-
 def _invalid_document(file: str, exc: FSAValidationError) -> dict[str, Any]:
     """``validate --json`` of a file that is not valid: its problems, with their lines."""
     return {"command": "validate", "file": file, "valid": False, "states": None,
             "start": None, "skills_checked": None, "unreachable": [], "traps": [],
-            "problems": [_problem_document(p) for p in exc.problems]}
+            "problems": [{"line": p.line, "column": p.column, "state": p.state, "key": p.key,
+                          "message": p.message, "fix": p.fix} for p in exc.problems]}
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -400,24 +381,22 @@ def cmd_skills(args: argparse.Namespace) -> int:
     registry, _ = _load(args)
     if not len(registry):
         raise SkillcomposeError("no skills loaded; give --skills MODULE or --task TASK")
+    docs = [_skill_document(registry, name) for name in sorted(registry.names())]
     if getattr(args, "json", False):
-        print_json({"command": "skills", "skills": [
-            _skill_document(registry, name) for name in sorted(registry.names())]})
+        print_json({"command": "skills", "skills": docs})
         return 0
-    for name in sorted(registry.names()):
-        spec = registry.spec(name)
-        backends = ", ".join(registry.backends(name))
-        print(f"{name}  [{backends}]")
-        print(f"  outcomes: {', '.join(spec.outcomes)}")
-        for p in spec.params:
-            print(f"  param {p.name}: {p.describe_range()} (default {p.default!r}"
-                  f"{', log scale' if p.scale == 'log' else ''})")
-        if spec.reads:
-            print(f"  reads:  {', '.join(sorted(spec.reads))}")
-        if spec.writes:
-            print(f"  writes: {', '.join(sorted(spec.writes))}")
-        if spec.doc:
-            print("  " + spec.doc.splitlines()[0])
+    for d in docs:
+        print(f"{d['name']}  [{', '.join(d['backends'])}]")
+        print(f"  outcomes: {', '.join(d['outcomes'])}")
+        for p in d["params"]:
+            print(f"  param {p['name']}: {p['range']} (default {p['default']!r}"
+                  f"{', log scale' if p['scale'] == 'log' else ''})")
+        if d["reads"]:
+            print(f"  reads:  {', '.join(d['reads'])}")
+        if d["writes"]:
+            print(f"  writes: {', '.join(d['writes'])}")
+        if d["doc"]:
+            print("  " + d["doc"])
     return 0
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import io
 import shutil
 import subprocess
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -115,11 +115,9 @@ def render(
     out = Path(out)
     fmt = out.suffix.lower().lstrip(".")
     out.parent.mkdir(parents=True, exist_ok=True)
-    if fmt in ("dot", "gv"):
-        out.write_text(to_dot(fsa, params=params), encoding="utf-8")
-        return out
-    if fmt in ("mmd", "mermaid"):
-        out.write_text(to_mermaid(fsa), encoding="utf-8")
+    if fmt in ("dot", "gv", "mmd", "mermaid"):
+        text = to_dot(fsa, params=params) if fmt in ("dot", "gv") else to_mermaid(fsa)
+        out.write_text(text, encoding="utf-8")
         return out
     if fmt not in ("svg", "png", "pdf"):
         raise DrawingError(
@@ -197,12 +195,9 @@ def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = T
     grid = layers(fsa)
     ncols = max(c for c, _ in grid.values()) + 1
     height = max((r for _, r in grid.values()), default=0) + 1
-    xy: dict[str, tuple[float, float]] = {}
-    col_size: dict[int, int] = defaultdict(int)
-    for c, _ in grid.values():
-        col_size[c] += 1
-    for name, (c, r) in grid.items():
-        xy[name] = (3.2 * c, (col_size[c] - 1) / 2.0 - r)  # columns centred vertically
+    col_size = Counter(c for c, _ in grid.values())
+    xy = {name: (3.2 * c, (col_size[c] - 1) / 2.0 - r)  # columns centred vertically
+          for name, (c, r) in grid.items()}
     fig = Figure(figsize=(max(6.0, 2.4 * ncols), max(3.5, 1.3 * height + 1.5)))
     ax = fig.add_subplot()
     boxes = {}
@@ -236,8 +231,7 @@ def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = T
                     va="center", fontsize=7, color="dimgray", zorder=2,
                     bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
                           "alpha": 0.8})
-    xs = [p[0] for p in xy.values()]
-    ys = [p[1] for p in xy.values()]
+    xs, ys = zip(*xy.values(), strict=True)
     ax.set_xlim(min(xs) - 1.6, max(xs) + 1.6)
     ax.set_ylim(min(ys) - 1.0, max(ys) + 1.0)
     ax.axis("off")

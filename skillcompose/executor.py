@@ -256,20 +256,14 @@ def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> di
     return out
 
 
-class _Raised:
+class _Raised(NamedTuple):
     """What a running activation's tick raised, handed from the hot path to the loop."""
 
-    __slots__ = ("exc",)
-
-    def __init__(self, exc: Exception) -> None:
-        self.exc = exc
+    exc: Exception
 
 
-class _Expired:
-    """What a state's activation gives when its time limit ran out."""
-
-
-_EXPIRED: Any = _Expired()
+_EXPIRED: Any = object()
+"""What a state's activation gives when its time limit ran out."""
 
 
 class FSARun:
@@ -641,8 +635,7 @@ def trial_seeds(
 def trial_rngs(
     seed: int | Sequence[int] | np.random.SeedSequence | None, trials: int, start: int = 0
 ) -> Iterator[np.random.Generator]:
-    for s in trial_seeds(seed, trials, start):
-        yield np.random.default_rng(s)
+    return (np.random.default_rng(s) for s in trial_seeds(seed, trials, start))
 
 
 def summarize(results: Sequence[RunResult]) -> dict[str, Any]:

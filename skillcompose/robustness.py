@@ -32,11 +32,11 @@ import argparse
 import csv
 import itertools
 import math
-import multiprocessing
 import os
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -119,9 +119,7 @@ class SweepRow:
         return self.rate(TIMEOUT)
 
 
-# ---------------------------------------------------------------------------------------
-# the sweep
-# ---------------------------------------------------------------------------------------
+# -- the sweep -----------------------------------------------------------------------------
 def robustness_sweep(
     fsa: FSA | str | os.PathLike[str],
     task: str | Task,
@@ -175,19 +173,14 @@ def robustness_sweep(
         for start, stop in _chunks(reps, workers, len(values))
     ]
     parts = []
-    with progress_bar(len(values) * reps, "run", f"sweep of {setting}",
-                      disable=not progress) as bar:
-        if workers == 1 or len(jobs) == 1:
-            for job in jobs:
-                parts.append(_run_chunk(job))
-                bar.update(job.stop - job.start)
-        else:
-            ctx = multiprocessing.get_context()  # the platform default start method
-            with ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
-                                     mp_context=ctx) as pool:
-                for job, part in zip(jobs, pool.map(_run_chunk, jobs), strict=True):
-                    parts.append(part)
-                    bar.update(job.stop - job.start)
+    with ExitStack() as stack:
+        bar = stack.enter_context(progress_bar(len(values) * reps, "run", f"sweep of {setting}",
+                                               disable=not progress))
+        run = map if workers == 1 or len(jobs) == 1 else \
+            stack.enter_context(ProcessPoolExecutor(min(workers, len(jobs)))).map
+        for job, part in zip(jobs, run(_run_chunk, jobs), strict=True):
+            parts.append(part)
+            bar.update(job.stop - job.start)
 
     rows = []
     per_value = len(jobs) // len(values)
@@ -197,16 +190,10 @@ def robustness_sweep(
         steps = np.concatenate([p[1] for p in mine])
         counts = sum((p[2] for p in mine), Counter[str]())
         rows.append(SweepRow(
-            setting=setting,
-            value=v,
-            reps=reps,
-            mean=float(np.mean(fit)),
-            std=float(np.std(fit, ddof=1)) if reps > 1 else 0.0,
-            min=float(np.min(fit)),
-            max=float(np.max(fit)),
-            mean_steps=float(np.mean(steps)),
-            solved=sum(p[3] for p in mine),
-            outcomes=dict(sorted(counts.items())),
+            setting=setting, value=v, reps=reps, mean=float(np.mean(fit)),
+            std=float(np.std(fit, ddof=1)) if reps > 1 else 0.0, min=float(np.min(fit)),
+            max=float(np.max(fit)), mean_steps=float(np.mean(steps)),
+            solved=sum(p[3] for p in mine), outcomes=dict(sorted(counts.items())),
         ))
     return rows
 
@@ -234,18 +221,11 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
         compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
-    fit = np.empty(n)
-    steps = np.empty(n, dtype=np.int64)
-    counts = Counter[str]()
-    solved = 0
-    is_solved = task.solved
-    for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n,
-                                                          start=job.start)):
-        fit[k] = f
-        solved += is_solved(f)
-        steps[k] = result.steps
+    fit, steps, counts = np.empty(n), np.empty(n, dtype=np.int64), Counter[str]()
+    for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n, start=job.start)):
+        fit[k], steps[k] = f, result.steps
         counts[result.outcome] += 1
-    return fit, steps, counts, solved
+    return fit, steps, counts, sum(task.solved(f) for f in fit.tolist())
 
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
@@ -328,31 +308,21 @@ def parse_values(text: str) -> list[float]:
     return values
 
 
-# ---------------------------------------------------------------------------------------
-# output
-# ---------------------------------------------------------------------------------------
+# -- output --------------------------------------------------------------------------------
 _FIRST_OUTCOMES = ("success", "failure", TIMEOUT, ERROR)
-
-
-def _outcome_columns(rows: Sequence[SweepRow]) -> list[str]:
-    seen = {o for r in rows for o in r.outcomes}
-    rest = sorted(seen - set(_FIRST_OUTCOMES))
-    return [*_FIRST_OUTCOMES, *rest]
 
 
 def table(rows: Sequence[SweepRow]) -> tuple[list[str], list[list[str]]]:
     """Header and formatted cells of the CSV table."""
     if not rows:
         raise RobustnessError("no rows to write")
-    outs = _outcome_columns(rows)
+    rest = {o for r in rows for o in r.outcomes} - set(_FIRST_OUTCOMES)
+    outs = [*_FIRST_OUTCOMES, *sorted(rest)]
     header = [rows[0].setting, "reps", "mean", "std", "min", "max", "mean_steps", "solved_rate"]
     header += [f"{o}_rate" for o in outs]
-    body = []
-    for r in rows:
-        cells = [f"{r.value:.10g}", str(r.reps)]
-        cells += [f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps, r.solved_rate)]
-        cells += [f"{r.rate(o):.6g}" for o in outs]
-        body.append(cells)
+    body = [[f"{r.value:.10g}", str(r.reps),
+             *(f"{x:.6g}" for x in (r.mean, r.std, r.min, r.max, r.mean_steps, r.solved_rate)),
+             *(f"{r.rate(o):.6g}" for o in outs)] for r in rows]
     return header, body
 
 
@@ -364,9 +334,7 @@ def write_csv(rows: Sequence[SweepRow], path: str | os.PathLike[str]) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     with p.open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(body)
+        csv.writer(f).writerows([header, *body])
     return p
 
 
@@ -376,10 +344,8 @@ def format_table(rows: Sequence[SweepRow]) -> str:
     keep = [0, 1, 2, 3, 6, *range(7, len(header))]  # leave min and max to the CSV
     cols = [[header[i], *[b[i] for b in body]] for i in keep]
     widths = [max(len(c) for c in col) for col in cols]
-    lines = []
-    for k in range(len(body) + 1):
-        lines.append("  ".join(col[k].rjust(w) for col, w in zip(cols, widths, strict=True)))
-    return "\n".join(lines)
+    return "\n".join("  ".join(col[k].rjust(w) for col, w in zip(cols, widths, strict=True))
+                     for k in range(len(body) + 1))
 
 
 def plot_sweep(
@@ -420,9 +386,7 @@ def plot_sweep(
     return p
 
 
-# ---------------------------------------------------------------------------------------
-# command line
-# ---------------------------------------------------------------------------------------
+# -- command line --------------------------------------------------------------------------
 def register_cli(subparsers: Any) -> None:
     """Add ``skillcompose robustness`` to the command line."""
     p = subparsers.add_parser(
@@ -459,10 +423,9 @@ def register_cli(subparsers: Any) -> None:
 
 def _sweep_arg(text: str) -> list[float]:
     try:
-        values = parse_values(text)
+        return parse_values(text)
     except RobustnessError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-    return values
 
 
 def _setting_name(text: str) -> str:
@@ -475,7 +438,6 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     from .cli import check_backend
     from .task import load_task, parse_settings
 
-    values = args.values if isinstance(args.values, list) else parse_values(args.values)
     settings = parse_settings(args.settings)
     if args.backend:
         check_backend(load_task(args.task, **settings).registry, args.backend)
@@ -484,14 +446,12 @@ def cmd_robustness(args: argparse.Namespace) -> int:
             f"--set {args.setting}=... conflicts with the sweep of {args.setting}; drop it"
         )
     rows = robustness_sweep(
-        args.file, args.task, values, reps=args.reps, seed=args.seed, workers=args.workers,
+        args.file, args.task, args.values, reps=args.reps, seed=args.seed, workers=args.workers,
         setting=args.setting, settings=settings, backend=args.backend,
         step_limit=args.step_limit, progress=not getattr(args, "quiet", False),
     )
     print(format_table(rows))
-    csv_path = args.csv
-    if csv_path is None and args.output:
-        csv_path = str(Path(args.output).with_suffix(".csv"))
+    csv_path = args.csv or (str(Path(args.output).with_suffix(".csv")) if args.output else None)
     if csv_path:
         write_csv(rows, csv_path)
         note(args, f"table: {csv_path}")

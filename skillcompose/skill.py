@@ -14,15 +14,12 @@ A *long-running* skill (a grasp, a base move) is declared the same way, as eithe
 - a generator function ``f(bb, rng, *, params...) -> Generator[str, None, Literal[...]]``
   that yields ``"running"`` (or nothing) until it returns its outcome; cancelling it closes
   the generator, so its ``finally:`` blocks are its cancel hook.
-
-The engine (:mod:`skillcompose.executor`) asks each skill how it starts (:meth:`Skill.starter`,
-:meth:`Skill.bind`, :meth:`Skill.cancel_hook`); subclasses (nested FSAs, py_trees subtrees)
-override these, so the engine never asks what kind a skill is.
 """
 
 from __future__ import annotations
 
 import collections.abc
+import contextlib
 import copy
 import functools
 import inspect
@@ -110,9 +107,9 @@ class Skill:
     This class is the function kind; each other kind (:class:`InstanceSkill`,
     :class:`TickingSkill`, :class:`GeneratorSkill`, nested FSAs, py_trees subtrees) is a
     subclass that says how it runs through :meth:`starter`, :meth:`bind` and
-    :meth:`cancel_hook`. Calling a ``Skill`` runs it once with the blackboard's access
-    limited to its declared keys, which is handy in tests: ``move_to_object(bb, rng,
-    approach=0.2)``.
+    :meth:`cancel_hook`, so the engine never asks what kind a skill is. Calling a ``Skill``
+    runs it once with the blackboard's access limited to its declared keys, which is handy
+    in tests: ``move_to_object(bb, rng, approach=0.2)``.
     """
 
     __slots__ = ("backend", "impl", "spec")
@@ -133,7 +130,6 @@ class Skill:
         twin = copy.copy(self)
         twin.backend = backend
         return twin
-
 
     def starter(self, backend: str | None = None) -> Starter | None:
         """``start(bb, rng, **params) -> Activation`` for a long-running skill, else None."""
@@ -157,8 +153,7 @@ class Skill:
     ) -> str:
         """Run the skill once, outside an FSA, with its parameters checked."""
         kwargs = self.spec.resolve_params(params)
-        if not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
+        rng = np.random.default_rng(rng)  # a Generator is returned as it is
         prev = bb._client
         bb._client = self.spec.access()
         try:
@@ -276,9 +271,7 @@ def skill(
     def wrap(obj: Callable[..., Any]) -> Skill:
         return _make_skill(obj, name, outcomes, reads, writes, backend)
 
-    if fn is not None:
-        return wrap(fn)
-    return wrap
+    return wrap(fn) if fn is not None else wrap
 
 
 _CAMEL = re.compile(r"(?:^|_)([a-z0-9])")
@@ -331,8 +324,6 @@ def _make_skill(
             )
         func = obj.start
         outcome_source = tick
-        skip = 1  # self
-        default_name = obj.__name__
     elif is_class:
         call = getattr(obj, "__call__", None)  # noqa: B004 - we want the class attribute
         if call is None or call is object.__call__:
@@ -342,15 +333,13 @@ def _make_skill(
                 "start / tick / cancel for a long-running skill"
             )
         func = call
-        skip = 1  # self
-        default_name = obj.__name__
     elif callable(obj):
         func = obj
-        skip = 0
-        default_name = camel_name(getattr(obj, "__name__", "skill"))
     else:
         raise SkillDefinitionError(f"@skill needs a function or a class, got {obj!r}")
-    skill_name = name or default_name
+    skip = 1 if is_class else 0  # self
+    skill_name = name or (obj.__name__ if is_class else
+                          camel_name(getattr(obj, "__name__", "skill")))
     if not isinstance(skill_name, str) or not skill_name.isidentifier():
         raise SkillDefinitionError(
             f"skill name {skill_name!r} must be an identifier (letters, digits, _)"
@@ -460,10 +449,9 @@ def _annotations(func: Any) -> dict[str, Any]:
     if not raw:
         return {}
     globalns = getattr(func, "__globals__", {})
-    try:
+    # fails e.g. on `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
+    with contextlib.suppress(Exception):
         return typing.get_type_hints(func, include_extras=True)
-    except Exception:  # e.g. `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
-        pass
     try:  # only parameters after `*` and the return type matter to a skill
         sig = inspect.signature(func)
         needed = {n for n, p in sig.parameters.items() if p.kind is p.KEYWORD_ONLY}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import AbstractContextManager, nullcontext
+from contextlib import AbstractContextManager, nullcontext, suppress
 from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
@@ -232,12 +232,9 @@ def parse_settings(items: Sequence[str]) -> dict[str, Any]:
             raise TaskError(f"task setting {item!r} must look like name=value")
         k, v = item.split("=", 1)
         val: Any = v
-        for conv in (int, float):
-            try:
+        for conv in (float, int):  # a whole number stays an int
+            with suppress(ValueError):
                 val = conv(v)
-                break
-            except ValueError:
-                continue
         if v.lower() in ("true", "false"):
             val = v.lower() == "true"
         out[k.strip()] = val
