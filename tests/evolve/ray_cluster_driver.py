@@ -123,10 +123,10 @@ def main() -> None:
         finally:
             ev.close()
 
-        # episodes slow enough (10 ms) that a generation outlasts the kill's delay, so the
-        # node dies with jobs of its own in flight, not between two generations
-        task = load_task("shipped_task", p_fail=0.2, delay=0.01, tolerance=0.0)
-        cfg = EvolutionConfig(population=40, trials=2, generations=8, initial_nodes=8,
+        # episodes slow enough (30 ms: a generation takes over a second on two nodes) that
+        # the node dies with jobs of its own in flight, not between two generations
+        task = load_task("shipped_task", p_fail=0.2, delay=0.03, tolerance=0.0)
+        cfg = EvolutionConfig(population=40, trials=2, generations=5, initial_nodes=8,
                               elitism=1)
         t = time.perf_counter()
         alone = evolve(task, cfg, seed=5, simplify_result=False, check_trials=0)
@@ -138,7 +138,7 @@ def main() -> None:
                 def kill() -> None:
                     killed.append(time.perf_counter())
                     cluster.kill(1)
-                threading.Timer(0.15, kill).start()
+                threading.Timer(0.4, kill).start()
 
         t = time.perf_counter()
         report["second node before"] = len(cluster.pids(1))
