@@ -25,6 +25,7 @@ import argparse
 import math
 import os
 import platform
+import shlex
 import statistics
 import sys
 import time
@@ -350,7 +351,7 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "Written by `benchmarks/bench_search.py`; every number below was measured by that "
         "run. Do not edit by hand: rerun the script.",
         "",
-        f"Command: `python benchmarks/bench_search.py {' '.join(args.argv)}`".rstrip() + "  ",
+        f"Command: `python benchmarks/bench_search.py {shlex.join(args.argv)}`".rstrip() + "  ",
         f"Machine: {os.cpu_count()} CPUs, {platform.machine()}, Python "
         f"{platform.python_version()}, NumPy {np.__version__}; {args.workers} runs at a "
         f"time, each serial. Load average (1, 5, 15 min) at the start "
@@ -453,7 +454,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)
     args.stamp = (f"of {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC "
-                  f"(`python benchmarks/bench_search.py {' '.join(args.argv)}`".rstrip() + ")")
+                  f"(`python benchmarks/bench_search.py {shlex.join(args.argv)}`".rstrip() + ")")
     if args.seeds < 1 or args.workers < 1:
         p.error("--seeds and --workers must be at least 1")
     if args.quick and args.out is None:
