@@ -81,7 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "parameters, e.g. a network's weights: N=150, 20 shared trials, "
                    "every mutated node's parameters perturbed, confirmed on 200 fresh "
                    "trials) or islands (robust on 4 islands of 150 with ring migration and "
-                   "unique children; add --cache on a deterministic task); the flags below "
+                   "unique children; add --cache on a deterministic task) or deterministic "
+                   "(for tasks whose fitness never changes: N=30, cache, unique children, "
+                   "elitism 2, tournament 5, S=12); the flags below "
                    "override it")
     p.add_argument("--tournament", type=whole(1, 10**6), help="tournament size (default 2)")
     p.add_argument("--param-sigma", type=number(0.0, 1.0),

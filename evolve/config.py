@@ -252,6 +252,15 @@ PRESETS: dict[str, dict[str, Any]] = {
         "migrants": 2,
         "unique_children": True,
     },
+    "deterministic": {
+        "population": 30,
+        "elitism": 2,
+        "tournament": 5,
+        "initial_nodes": 12,
+        "param_sigma": 0.1,
+        "cache": True,
+        "unique_children": True,
+    },
     "push": {
         "population": 150,
         "trials": 20,
@@ -276,4 +285,12 @@ moving to push (see docs/results/move_to_push.md): 150 individuals, 20 episodes 
 evaluation shared by the generation (a success rate near 0.95 must be told from one near
 0.85), the two best surviving, tournaments of 3, initial FSAs of 12 nodes, every mutated
 node's parameters perturbed (``p_param`` 1, noise 0.05), and a solution confirmed on 200
-fresh episodes."""
+fresh episodes.
+
+``deterministic`` is for tasks whose fitness never changes from one episode to the next
+(``Task.deterministic``: the classic FSA benchmarks in ``benchmarks/``, chosen there with
+``benchmarks/bench_search.py``, see docs/results/search.md): a small population of 30 that
+evolves for many generations, the cache on (a genome met again costs nothing) and unique
+children (each generation spends its evaluations on genomes not met before), the two best
+surviving, tournaments of 5, initial FSAs of 12 nodes, parameter noise 0.1. One trial per
+evaluation: a deterministic task runs one whatever ``trials`` says."""

@@ -75,3 +75,35 @@ def test_quick_run_writes_its_report(tmp_path: Path) -> None:
     rows = [line for line in text.splitlines() if line.startswith("| paper | 40 | ")]
     assert len(rows) == 2  # one per task, measured: M = 40, two seeds
     assert all("/2 |" in row for row in rows)
+
+
+def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
+    old = ("# Search\n\nCommand: `python benchmarks/bench_search.py `  \nMachine: old.\n\n"
+           "## ant, Santa Fe trail\n\nold Santa Fe table\n\n"
+           "## ant, John Muir trail\n\nold John Muir table\n\n"
+           "## maze (wall following)\n\nold maze table\n")
+    new = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only maze`  \n"
+           "Machine: new.\n\n## maze (wall following)\n\n"
+           f"{bench_search.RUN_MARK}of now.\n\nnew maze table\n")
+    text = bench_search.merge_page(old, new, ["maze (wall following)"])
+    assert text.startswith(new.split("\n## ")[0])
+    assert "This run measured maze (wall following); the other sections (ant, Santa Fe " \
+           "trail, ant, John Muir trail) are kept" in text
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [
+        "## ant, Santa Fe trail", "## ant, John Muir trail", "## maze (wall following)"]
+    assert "old maze table" not in text and "new maze table" in text
+    assert text.count("of an earlier page (Command: `python benchmarks/bench_search.py ` "
+                      "Machine: old.)") == 2
+    assert bench_search.merge_page(old, old, ["all"]) == old  # nothing kept: as measured
+
+
+def test_the_deterministic_preset_solves_the_maze_the_same_way_twice() -> None:
+    from evolve import PRESETS, EvolutionConfig, evolve
+
+    task = load_task("benchmarks.tasks.maze")
+    cfg = EvolutionConfig(**{**PRESETS["deterministic"], "generations": 40})
+    runs = [evolve(task, cfg, seed=3, workers=1, backend="serial", simplify_result=False)
+            for _ in range(2)]
+    assert runs[0].solved and runs[0].best_fitness == 4.0
+    assert [h.best for h in runs[0].history] == [h.best for h in runs[1].history]
+    assert runs[0].evaluations == runs[1].evaluations
