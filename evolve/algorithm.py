@@ -763,7 +763,7 @@ def evolve(
     task: Task,
     cfg: EvolutionConfig | None = None,
     seed: int | None = 0,
-    workers: int | None = 1,
+    workers: int | None = None,
     backend: str = "serial",
     out_dir: str | os.PathLike[str] | None = None,
     seed_fsa: FSA | str | os.PathLike[str] | None = None,
@@ -779,7 +779,8 @@ def evolve(
 
     - ``seed``: the run's seed (``None`` draws one, recorded in the result and files).
     - ``backend``: ``"serial"``, ``"process"`` (``workers`` processes, default all cores) or
-      ``"ray"``; the result does not depend on it.
+      ``"ray"`` (``workers`` actors, default one per CPU of the cluster); the result does not
+      depend on it.
     - ``out_dir``: write the run directory (see :mod:`evolve.rundir`) as the run goes.
     - ``resume``: a run directory to continue from its last checkpoint (see
       :mod:`evolve.resume`). ``task`` must be the run's task; the seed, the settings, the
