@@ -226,27 +226,22 @@ class EvolutionConfig:
 EVALUATION_BACKENDS = ("serial", "process", "ray")
 """Where evaluations run: in the calling process, a local process pool, or Ray."""
 
+_ROBUST: dict[str, Any] = {
+    "population": 600,
+    "trials": 3,
+    "common_random_numbers": True,
+    "elitism": 2,
+    "tournament": 3,
+    "initial_nodes": 12,
+    "param_sigma": 0.1,
+    "confirm_trials": 20,
+}
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
-    "robust": {
-        "population": 600,
-        "trials": 3,
-        "common_random_numbers": True,
-        "elitism": 2,
-        "tournament": 3,
-        "initial_nodes": 12,
-        "param_sigma": 0.1,
-        "confirm_trials": 20,
-    },
-    "islands": {
-        "population": 600,
-        "trials": 3,
-        "common_random_numbers": True,
-        "elitism": 2,
-        "tournament": 3,
-        "initial_nodes": 12,
-        "param_sigma": 0.1,
-        "confirm_trials": 20,
+    "robust": dict(_ROBUST),
+    "islands": {  # the robust preset, its population on islands
+        **_ROBUST,
         "islands": 4,
         "migration_interval": 10,
         "migrants": 2,
