@@ -435,6 +435,28 @@ def merge_page(old: str, new: str, measured: Sequence[str]) -> str:
     return new_head + "\n" + note + "\n" + "\n".join(body)
 
 
+def combine_pages(page: str, other: str) -> str:
+    """``page`` with every section of ``other`` (a page this script wrote elsewhere, such as
+    on another branch) in place of its own, each section still naming the run that measured
+    it; nothing is measured."""
+    head, sections = _split_page(page)
+    other_head, other_sections = _split_page(other)
+    earlier = " ".join(line.strip() for line in other_head.splitlines()
+                       if line.startswith(("Command:", "Machine:")))
+    for name, section in other_sections.items():
+        if RUN_MARK not in section:
+            heading, rest = section.split("\n", 1)
+            section = f"{heading}\n\n{RUN_MARK}of an earlier page ({earlier}).\n{rest}"
+        sections[name] = section
+    head = "".join(line for line in head.splitlines(keepends=True)
+                   if not line.startswith("This run measured"))
+    order = [b.name for b in BENCHES if b.name in sections]
+    order += [n for n in sections if n not in order]
+    note = ("Its sections come from several runs, each named at its head (combined by "
+            "`--merge-from`).\n")
+    return head.rstrip("\n") + "\n\n" + note + "\n" + "\n".join(sections[n] for n in order)
+
+
 def _settings(d: dict[str, Any]) -> str:
     return ", ".join(f"`{k}={v}`" for k, v in d.items())
 
@@ -451,7 +473,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="only the benchmarks whose name contains NAME (repeatable)")
     p.add_argument("--out", default=None,
                    help="output folder (default docs/results; --quick needs one)")
+    p.add_argument("--merge-from", metavar="PAGE", default=None,
+                   help="measure nothing: put the sections of PAGE, a page this script wrote "
+                        "(on another branch, say), into the output folder's page")
     args = p.parse_args(argv)
+    if args.merge_from:
+        page = Path(args.out or ROOT / "docs" / "results") / "search.md"
+        try:
+            other = Path(args.merge_from).read_text(encoding="utf-8")
+            text = page.read_text(encoding="utf-8")
+        except OSError as e:
+            p.error(f"--merge-from: cannot read {e.filename}: {e.strerror}")
+        page.write_text(combine_pages(text, other), encoding="utf-8")
+        print(f"wrote {page}", file=sys.stderr)
+        return 0
     args.argv = list(sys.argv[1:] if argv is None else argv)
     args.stamp = (f"of {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC "
                   f"(`python benchmarks/bench_search.py {shlex.join(args.argv)}`".rstrip() + ")")

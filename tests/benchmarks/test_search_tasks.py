@@ -97,6 +97,28 @@ def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     assert bench_search.merge_page(old, old, ["all"]) == old  # nothing kept: as measured
 
 
+def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: Path) -> None:
+    mine = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only maze`  \n"
+            "Machine: mine.\n\nThis run measured maze (wall following); the other ...\n\n"
+            "## ant, Santa Fe trail\n\nold Santa Fe table\n\n"
+            f"## maze (wall following)\n\n{bench_search.RUN_MARK}of mine.\n\nmy maze table\n")
+    other = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only Santa`  \n"
+             "Machine: other.\n\n## ant, Santa Fe trail\n\n"
+             f"{bench_search.RUN_MARK}of theirs.\n\nnew Santa Fe table\n")
+    (tmp_path / "search.md").write_text(mine, encoding="utf-8")
+    (tmp_path / "other.md").write_text(other, encoding="utf-8")
+    assert bench_search.main(["--out", str(tmp_path), "--merge-from",
+                              str(tmp_path / "other.md")]) == 0
+    text = (tmp_path / "search.md").read_text(encoding="utf-8")
+    assert "Machine: mine." in text and "This run measured" not in text
+    assert "new Santa Fe table" in text and "old Santa Fe table" not in text
+    assert f"{bench_search.RUN_MARK}of theirs." in text and "my maze table" in text
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [
+        "## ant, Santa Fe trail", "## maze (wall following)"]
+    with pytest.raises(SystemExit):
+        bench_search.main(["--out", str(tmp_path), "--merge-from", str(tmp_path / "none.md")])
+
+
 def test_the_deterministic_preset_solves_the_maze_the_same_way_twice() -> None:
     from evolve import PRESETS, EvolutionConfig, evolve
 
