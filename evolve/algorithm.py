@@ -384,7 +384,11 @@ class _Run:
         """One island's children, appended to ``nxt`` until it holds ``end`` individuals."""
         cfg, rng, n = self.cfg, self.rng, len(population)
         sizes = [len(x) for x in population]
-        order = sorted(range(n), key=lambda i: (*self.rank_key(fitness[i], sizes[i]), i))
+        # neutral: at equal rank the newer genome (higher uid) goes first, so a child as good
+        # as the elite takes its place (neutral drift)
+        newer = [-x.origin["uid"] if cfg.neutral else 0 for x in population]
+        order = sorted(range(n),
+                       key=lambda i: (*self.rank_key(fitness[i], sizes[i]), newer[i], i))
         rank = [0] * n
         for r, i in enumerate(order):
             rank[i] = r

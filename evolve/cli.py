@@ -135,6 +135,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--unique-children", action="store_true", dest="unique_children",
                    help="mutate a child again until its genome is new (to the generation, "
                    "and with --cache to the run)")
+    p.add_argument("--neutral", action="store_true",
+                   help="at equal fitness the newer genome ranks first: a child as good as "
+                   "an elite replaces it (neutral drift)")
     p.add_argument("--checkpoint-every", type=whole(1, big),
                    help="generations between checkpoints (10)")
     p.add_argument("--no-simplify", action="store_true",
@@ -207,6 +210,8 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
         changes["parsimony"] = True
     if args.unique_children:
         changes["unique_children"] = True
+    if args.neutral:
+        changes["neutral"] = True
     return changes
 
 
@@ -246,7 +251,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
     flags = {name: opt for opt, name in _SETTING_OPTIONS}
     flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
-                 unique_children="unique_children",
+                 unique_children="unique_children", neutral="neutral",
                  eval_time_limit="eval_time_limit")
     for name, value in _given_settings(args).items():
         if name in FREE_SETTINGS:

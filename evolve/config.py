@@ -78,6 +78,11 @@ class EvolutionConfig:
     - ``unique_children``: a child whose genome equals one already met (in this generation,
       or evaluated before when ``cache`` is on) is mutated again (up to 8 times) until it
       is new, so a generation spends its evaluations on new genomes.
+    - ``neutral``: at equal fitness (and size, with ``parsimony``) the newer genome ranks
+      first in its island's elites and tournaments, so a child as good as an elite takes
+      its place: the search drifts across genomes of equal fitness instead of keeping the
+      first one found (neutral drift, as in the (1 + lambda) evolution strategy of Cartesian
+      genetic programming).
 
     Faults and limits (see docs/evolve.md, "Faults and limits"):
 
@@ -121,6 +126,7 @@ class EvolutionConfig:
     topology: str = "ring"
     restart_after: int = 0
     unique_children: bool = False
+    neutral: bool = False
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 4
@@ -157,9 +163,9 @@ class EvolutionConfig:
         if self.topology not in TOPOLOGIES:
             problems.append(f"topology = {self.topology!r}: choose one of "
                             f"{', '.join(TOPOLOGIES)}")
-        if not isinstance(self.unique_children, bool):
-            problems.append(f"unique_children = {self.unique_children!r}: expected true or "
-                            "false")
+        for name in ("unique_children", "neutral"):
+            if not isinstance(getattr(self, name), bool):
+                problems.append(f"{name} = {getattr(self, name)!r}: expected true or false")
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
             prob(name)
         if self.trials is not None:

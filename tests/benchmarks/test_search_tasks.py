@@ -36,6 +36,30 @@ def test_the_hand_written_ant(trail: str, eaten: float) -> None:
     assert task.solved(fitness) == (eaten == 89.0)
 
 
+def test_the_john_muir_trail_is_solvable_in_200_steps() -> None:
+    task = load_task("benchmarks.tasks.ant", trail="john_muir")
+    (result, fitness), = task.run_trials(task.compile(ant.SOLUTION), 0, 1)
+    assert fitness == 89.0 and task.solved(fitness)
+    assert result.steps <= 200 == task.step_limit
+    # the same walk replayed by hand: every move and turn is one time step
+    food = {(r, c) for r, line in enumerate(ant.MUIR_TRAIL) for c, ch in enumerate(line)
+            if ch == "#"}
+    row = col = heading = steps = 0
+    state = ant.SOLUTION.start
+    while food and steps < 200:
+        skill = ant.SOLUTION.states[state].skill
+        dr, dc = ((0, 1), (1, 0), (0, -1), (-1, 0))[heading]
+        if skill == "Move":
+            row, col = (row + dr) % 32, (col + dc) % 32
+            food.discard((row, col))
+        heading = (heading + {"TurnLeft": -1, "TurnRight": 1}.get(skill, 0)) % 4
+        dr, dc = ((0, 1), (1, 0), (0, -1), (-1, 0))[heading]
+        seen = "food" if ((row + dr) % 32, (col + dc) % 32) in food else "empty"
+        state = ant.SOLUTION.states[state].transitions[seen]
+        steps += 1
+    assert not food and steps == result.steps
+
+
 def test_the_maze_is_perfect_and_the_wall_follower_solves_it() -> None:
     floor = {(r, c) for r, line in enumerate(maze.MAZE) for c, ch in enumerate(line)
              if ch != "#"}
