@@ -103,6 +103,41 @@ def test_unique_children_spend_evaluations_on_new_genomes() -> None:
     assert unique.evaluations > plain.evaluations
 
 
+def test_neutral_elites_give_way_to_newer_genomes_of_equal_fitness() -> None:
+    from evolve.algorithm import _Run
+    from evolve.genome import SkillSet
+    from evolve.operators import initialize
+
+    task = _task()
+    skills = SkillSet.from_task(task)
+
+    def elites(neutral: bool) -> list[int]:
+        cfg = EvolutionConfig(population=6, initial_nodes=4, elitism=2, neutral=neutral)
+        run = _Run(task, cfg, 0, skills, None, None, None, 1, {})
+        for _ in range(cfg.population):
+            g = initialize(skills, run.rng, cfg.initial_nodes)
+            g.origin = {"uid": run.uid()}
+            run.population.append(g)
+        fitness = [1.0, 0.5, 0.5, 2.0, 0.5, 0.5]  # minimised: four equal best
+        return [g.origin["uid"] for g in run.breed(fitness) if g.origin.get("elite")]
+
+    assert elites(False) == [1, 2]  # the first found stay
+    assert elites(True) == [5, 4]  # the newest of the equals take their place
+
+
+def test_a_neutral_run_resumes_as_if_never_interrupted(tmp_path: Path) -> None:
+    task = _task()
+    cfg = ISLANDS.replace(neutral=True, islands=1, restart_after=0)
+    full = evolve(task, cfg, seed=2, out_dir=tmp_path / "full", simplify_result=False,
+                  check_trials=0)
+    evolve(task, cfg.replace(generations=3), seed=2, out_dir=tmp_path / "short",
+           simplify_result=False, check_trials=0)
+    resumed = evolve(task, cfg, resume=tmp_path / "short")
+    assert _run(resumed) == _run(full)
+    assert _run(full) != _run(evolve(task, cfg.replace(neutral=False), seed=2,
+                                     simplify_result=False, check_trials=0))
+
+
 def test_a_stagnant_island_restarts_around_its_best() -> None:
     task = _task()
     cfg = EvolutionConfig(population=20, initial_nodes=6, generations=6, islands=2,
@@ -133,11 +168,11 @@ def test_the_command_line_sets_islands_and_the_island_preset() -> None:
     args = build_parser().parse_args(
         ["evolve", "examples.toy_task", "--islands", "3", "--population", "30",
          "--migration-interval", "5", "--migrants", "1", "--topology", "complete",
-         "--restart-after", "20", "--unique-children"])
+         "--restart-after", "20", "--unique-children", "--neutral"])
     cfg = _config(args)
     assert (cfg.islands, cfg.population, cfg.migration_interval, cfg.migrants,
-            cfg.topology, cfg.restart_after, cfg.unique_children) == (
-        3, 30, 5, 1, "complete", 20, True)
+            cfg.topology, cfg.restart_after, cfg.unique_children, cfg.neutral) == (
+        3, 30, 5, 1, "complete", 20, True, True)
     preset = _config(build_parser().parse_args(["evolve", "examples.toy_task", "--preset",
                                                 "islands"]))
     assert preset == EvolutionConfig(**PRESETS["islands"])
