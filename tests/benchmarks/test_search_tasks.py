@@ -121,6 +121,26 @@ def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     assert bench_search.merge_page(old, old, ["all"]) == old  # nothing kept: as measured
 
 
+def test_held_out_seeds_get_sections_of_their_own_beside_the_first() -> None:
+    santa = bench_search.BENCHES[0]
+    assert bench_search.section_name(santa, [0, 1]) == "ant, Santa Fe trail"
+    held_out = bench_search.section_name(santa, list(range(100, 110)))
+    assert held_out == "ant, Santa Fe trail, seeds 100–109"
+    assert "Held-out" in bench_search.seeds_note([100, 101])
+    assert "flatter" in bench_search.seeds_note([28, 29, 30])  # two of them were tuned on
+    old = ("# Search\n\nCommand: `x`  \nMachine: old.\n\n"
+           f"## ant, Santa Fe trail\n\n{bench_search.RUN_MARK}of then.\n\nold Santa Fe\n\n"
+           f"## maze (wall following)\n\n{bench_search.RUN_MARK}of then.\n\nold maze\n")
+    new = ("# Search\n\nCommand: `y`  \nMachine: new.\n\n"
+           f"## {held_out}\n\n{bench_search.RUN_MARK}of now.\n\nheld-out Santa Fe\n")
+    text = bench_search.merge_page(old, new, [held_out])
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [
+        "## ant, Santa Fe trail", f"## {held_out}", "## maze (wall following)"]
+    assert "old Santa Fe" in text and "held-out Santa Fe" in text
+    with pytest.raises(SystemExit):
+        bench_search.main(["--first-seed", "-1", "--quick", "--out", "unused"])
+
+
 def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: Path) -> None:
     mine = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only maze`  \n"
             "Machine: mine.\n\nThis run measured maze (wall following); the other ...\n\n"

@@ -125,11 +125,14 @@ def test_neutral_elites_give_way_to_newer_genomes_of_equal_fitness() -> None:
     assert elites(True) == [5, 4]  # the newest of the equals take their place
 
 
-def test_a_neutral_run_resumes_as_if_never_interrupted(tmp_path: Path) -> None:
+def test_a_neutral_run_is_the_same_on_a_pool_and_resumed(tmp_path: Path) -> None:
     task = _task()
     cfg = ISLANDS.replace(neutral=True, islands=1, restart_after=0)
     full = evolve(task, cfg, seed=2, out_dir=tmp_path / "full", simplify_result=False,
                   check_trials=0)
+    pool = evolve(task, cfg, seed=2, backend="process", workers=2, simplify_result=False,
+                  check_trials=0)
+    assert _run(pool) == _run(full)
     evolve(task, cfg.replace(generations=3), seed=2, out_dir=tmp_path / "short",
            simplify_result=False, check_trials=0)
     resumed = evolve(task, cfg, resume=tmp_path / "short")
