@@ -31,7 +31,7 @@ import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -123,7 +123,7 @@ BENCHES = (
     ),
     Bench(
         "maze (wall following)", "benchmarks.tasks.maze", {}, 60, (3_000, 10_000),
-        DETERMINISTIC,
+        (*DETERMINISTIC, "deterministic + neutral"),
         "A 7 x 7-cell perfect maze with a wall-ahead sensor, exit reached from four corners "
         "in turn within 1000 actions; solved when all four are done. Our maze: no published "
         "figure applies.",
@@ -517,6 +517,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="a smoke test: the maze and Santa Fe, 2 seeds, tiny budgets")
     p.add_argument("--only", action="append", default=[], metavar="NAME",
                    help="only the benchmarks whose name contains NAME (repeatable)")
+    p.add_argument("--config", action="append", default=[], metavar="NAME",
+                   help="only these settings (repeatable; names as in the tables, e.g. "
+                        "'deterministic + neutral'), where a benchmark compares them")
     p.add_argument("--out", default=None,
                    help="output folder (default docs/results; --quick needs one)")
     p.add_argument("--merge-from", metavar="PAGE", default=None,
@@ -551,6 +554,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not benches:
         p.error(f"--only {args.only} matches no benchmark; names: "
                 f"{', '.join(b.name for b in BENCHES)}")
+    unknown = [c for c in args.config if c not in CONFIGS]
+    if unknown:
+        p.error(f"--config {unknown[0]!r}: no such settings; choose among "
+                f"{', '.join(repr(c) for c in CONFIGS)}")
+    if args.config:
+        benches = [replace(b, configs=tuple(c for c in b.configs if c in args.config))
+                   for b in benches]
+        benches = [b for b in benches if b.configs]
+        if not benches:
+            p.error(f"--config {args.config}: none of the chosen benchmarks compares them")
     seeds = list(range(args.first_seed, args.first_seed + (2 if args.quick else args.seeds)))
     generations = {b.name: 3 if args.quick else b.generations for b in benches}
     population = 40 if args.quick else None

@@ -139,6 +139,8 @@ def test_held_out_seeds_get_sections_of_their_own_beside_the_first() -> None:
     assert "old Santa Fe" in text and "held-out Santa Fe" in text
     with pytest.raises(SystemExit):
         bench_search.main(["--first-seed", "-1", "--quick", "--out", "unused"])
+    with pytest.raises(SystemExit):
+        bench_search.main(["--config", "no such settings", "--quick", "--out", "unused"])
 
 
 def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: Path) -> None:
