@@ -388,8 +388,8 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "`deterministic + neutral` adds `--neutral` (at equal fitness the newer genome "
         "ranks first: neutral drift), tried in short runs on seeds 0–9 of the John Muir "
         "trail, the Santa Fe trail and the maze. Each section says whether its seeds are "
-        "among the tuning seeds ({seed_span(TUNED_SEEDS)}, where the figures flatter the settings) "
-        "or held out (`--first-seed 30` or above).",
+        f"among the tuning seeds ({seed_span(TUNED_SEEDS)}, where the figures flatter the "
+        "settings) or held out (`--first-seed 30` or above).",
         "",
     ]
     for bench in benches:
