@@ -96,6 +96,8 @@ def test_quick_run_writes_its_report(tmp_path: Path) -> None:
     assert "Command: `python benchmarks/bench_search.py --quick --workers 1 --out" in text
     for bench in ("## ant, Santa Fe trail", "## maze (wall following)"):
         assert bench in text
+    assert "among the tuning seeds (0–29," in text
+    assert text.count("Seeds among those the settings were chosen on (0–29)") == 2
     rows = [line for line in text.splitlines() if line.startswith("| paper | 40 | ")]
     assert len(rows) == 2  # one per task, measured: M = 40, two seeds
     assert all("/2 |" in row for row in rows)
