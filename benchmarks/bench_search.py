@@ -382,7 +382,7 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         rows = results[bench.name]
         lines += [f"## {bench.name}", "", f"{RUN_MARK}{args.stamp}.", "", bench.about, "",
                   f"`{bench.module}` {bench.settings or ''}, {len(rows[0].runs)} seeds "
-                  f"(0–{len(rows[0].runs) - 1}), budget {generations[bench.name]} "
+                  f"({_seed_span(rows[0].runs)}), budget {generations[bench.name]} "
                   "generations.", ""]
         lines += bench_table(bench, rows)
         lines.append("")
@@ -457,13 +457,21 @@ def combine_pages(page: str, other: str) -> str:
     return head.rstrip("\n") + "\n\n" + note + "\n" + "\n".join(sections[n] for n in order)
 
 
+def _seed_span(runs: Sequence[RunResult]) -> str:
+    seeds = sorted(r.seed for r in runs)
+    return f"{seeds[0]}–{seeds[-1]}"
+
+
 def _settings(d: dict[str, Any]) -> str:
     return ", ".join(f"`{k}={v}`" for k, v in d.items())
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seeds", type=int, default=10, help="seeds 0..N-1 (default 10)")
+    p.add_argument("--seeds", type=int, default=10,
+                   help="N seeds, K..K+N-1 with K from --first-seed (default 10)")
+    p.add_argument("--first-seed", type=int, default=0, metavar="K",
+                   help="the first seed (default 0); tune on other seeds than those reported")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="runs at a time (default: all cores)")
     p.add_argument("--full", action="store_true", help="add move to push (hours)")
@@ -492,6 +500,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                   f"(`python benchmarks/bench_search.py {shlex.join(args.argv)}`".rstrip() + ")")
     if args.seeds < 1 or args.workers < 1:
         p.error("--seeds and --workers must be at least 1")
+    if args.first_seed < 0:
+        p.error(f"--first-seed {args.first_seed}: seeds are whole numbers >= 0; give 0 or more")
     if args.quick and args.out is None:
         p.error("--quick measures nothing worth keeping: give --out DIR (not docs/results)")
     args.out = args.out or str(ROOT / "docs" / "results")
@@ -503,7 +513,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not benches:
         p.error(f"--only {args.only} matches no benchmark; names: "
                 f"{', '.join(b.name for b in BENCHES)}")
-    seeds = list(range(2 if args.quick else args.seeds))
+    seeds = [args.first_seed + k for k in range(2 if args.quick else args.seeds)]
     generations = {b.name: 3 if args.quick else b.generations for b in benches}
     population = 40 if args.quick else None
     load0 = os.getloadavg()

@@ -77,6 +77,19 @@ def test_quick_run_writes_its_report(tmp_path: Path) -> None:
     assert all("/2 |" in row for row in rows)
 
 
+def test_first_seed_moves_the_seeds_and_the_page_names_them(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["--quick", "--workers", "1", "--only", "maze", "--first-seed", "100",
+            "--out", str(tmp_path)]
+    assert bench_search.main(argv) == 0
+    text = (tmp_path / "search.md").read_text(encoding="utf-8")
+    assert ", 2 seeds (100–101), budget 3 generations." in text
+    assert "seed 100:" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bench_search.main(["--first-seed", "-1", "--out", str(tmp_path)])
+    assert "--first-seed -1: seeds are whole numbers >= 0" in capsys.readouterr().err
+
+
 def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     old = ("# Search\n\nCommand: `python benchmarks/bench_search.py `  \nMachine: old.\n\n"
            "## ant, Santa Fe trail\n\nold Santa Fe table\n\n"
