@@ -119,6 +119,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--confirm-rate", type=number(0.0, 1.0), dest="confirm_rate",
                    help="with --confirm, the share of those trials that must each reach the "
                         "target (default: their mean must)")
+    p.add_argument("--confirm-feedback", action="store_true", dest="confirm_feedback",
+                   help="with --confirm, a solution that fails its confirmation also takes "
+                        "that fitness in the population (and the cache), so the next "
+                        "candidate is confirmed instead of it")
     p.add_argument("--islands", type=whole(1, 10_000),
                    help="split the population into this many islands bred apart, with "
                    "migration (default 1: one population); --population is the total")
@@ -207,6 +211,8 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
         changes["parsimony"] = True
     if args.unique_children:
         changes["unique_children"] = True
+    if args.confirm_feedback:
+        changes["confirm_feedback"] = True
     return changes
 
 
@@ -246,7 +252,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
     flags = {name: opt for opt, name in _SETTING_OPTIONS}
     flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
-                 unique_children="unique_children",
+                 unique_children="unique_children", confirm_feedback="confirm_feedback",
                  eval_time_limit="eval_time_limit")
     for name, value in _given_settings(args).items():
         if name in FREE_SETTINGS:

@@ -60,6 +60,12 @@ class EvolutionConfig:
       scores with small ones, such as stacking's 50 for a run that never grasped); its
       confirmations all use the same worlds, drawn once per run, so that an FSA confirmed
       again generation after generation cannot pass by a lucky draw at last.
+      ``confirm_feedback``: a genome that fails its confirmation also takes, in the
+      population (and in the cache), the mean fitness of its evaluation and its
+      confirmation episodes, so that it loses its place among the best and the next
+      candidate is confirmed instead of it (without it, only the run's record of the best
+      changes, and the same genome, still scoring the target in the population, is confirmed
+      again).
 
     Islands and diversity (all off by default; see docs/evolve.md, "Islands"):
 
@@ -114,6 +120,7 @@ class EvolutionConfig:
     parsimony: bool = False
     confirm_trials: int = 0
     confirm_rate: float = 0.0
+    confirm_feedback: bool = False
     p_param: float = 0.0
     islands: int = 1
     migration_interval: int = 10
@@ -157,9 +164,9 @@ class EvolutionConfig:
         if self.topology not in TOPOLOGIES:
             problems.append(f"topology = {self.topology!r}: choose one of "
                             f"{', '.join(TOPOLOGIES)}")
-        if not isinstance(self.unique_children, bool):
-            problems.append(f"unique_children = {self.unique_children!r}: expected true or "
-                            "false")
+        for name in ("unique_children", "confirm_feedback"):
+            if not isinstance(getattr(self, name), bool):
+                problems.append(f"{name} = {getattr(self, name)!r}: expected true or false")
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
             prob(name)
         if self.trials is not None:
