@@ -81,7 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "parameters, e.g. a network's weights: N=150, 20 shared trials, "
                    "every mutated node's parameters perturbed, confirmed on 200 fresh "
                    "trials) or islands (robust on 4 islands of 150 with ring migration and "
-                   "unique children; add --cache on a deterministic task) or deterministic "
+                   "unique children; add --cache on a deterministic task) or noisy "
+                   "(islands, the cache keeping each genome's trials, solutions confirmed "
+                   "on 100 fixed fresh trials, all of which must pass) or deterministic "
                    "(for tasks whose fitness never changes: N=30, cache, unique children, "
                    "elitism 2, tournament 5, S=12); the flags below "
                    "override it")

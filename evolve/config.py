@@ -244,15 +244,25 @@ _ROBUST: dict[str, Any] = {
     "confirm_trials": 20,
 }
 
+_ISLANDS: dict[str, Any] = {  # the robust preset, its population on islands
+    **_ROBUST,
+    "islands": 4,
+    "migration_interval": 10,
+    "migrants": 2,
+    "unique_children": True,
+}
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
     "robust": dict(_ROBUST),
-    "islands": {  # the robust preset, its population on islands
-        **_ROBUST,
-        "islands": 4,
-        "migration_interval": 10,
-        "migrants": 2,
-        "unique_children": True,
+    "islands": dict(_ISLANDS),
+    "noisy": {  # the island preset, each genome's trials kept, a strict confirmation
+        **_ISLANDS,
+        "cache": True,
+        "cache_refresh": 3,
+        "confirm_trials": 100,
+        "confirm_rate": 1.0,
+        "confirm_feedback": True,
     },
     "deterministic": {
         "population": 30,
@@ -288,6 +298,13 @@ evaluation shared by the generation (a success rate near 0.95 must be told from 
 0.85), the two best surviving, tournaments of 3, initial FSAs of 12 nodes, every mutated
 node's parameters perturbed (``p_param`` 1, noise 0.05), and a solution confirmed on 200
 fresh episodes.
+
+``noisy`` is for noisy tasks where a solution must hold on nearly every episode, chosen on
+the pour-water task (see docs/results/search.md): the island preset, with the cache keeping
+every trial a genome has had (3 more each time it reappears, folded into its mean), and a
+solution confirmed on 100 fresh worlds, the same for the whole run, every one of which it
+must solve; a genome that fails its confirmation takes that fitness in the population, so
+the next candidate is confirmed.
 
 ``deterministic`` is for tasks whose fitness never changes from one episode to the next
 (``Task.deterministic``: the classic FSA benchmarks in ``benchmarks/``, chosen there with

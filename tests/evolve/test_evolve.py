@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from evolve import (
+    PRESETS,
     EvolutionConfig,
     EvolutionResult,
     Genome,
@@ -408,3 +409,8 @@ def test_the_command_line_sets_confirm_feedback() -> None:
     assert (cfg.confirm_trials, cfg.confirm_rate, cfg.confirm_feedback) == (100, 1.0, True)
     assert not _config(build_parser().parse_args(["evolve", "examples.toy_task"])
                        ).confirm_feedback
+    noisy = _config(build_parser().parse_args(["evolve", "examples.toy_task", "--preset",
+                                               "noisy"]))
+    assert noisy == EvolutionConfig(**PRESETS["noisy"])
+    assert (noisy.islands, noisy.cache_refresh, noisy.confirm_trials, noisy.confirm_rate,
+            noisy.confirm_feedback) == (4, 3, 100, 1.0, True)
