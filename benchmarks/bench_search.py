@@ -417,7 +417,7 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "each genome's trials (`--cache --cache-refresh 3`: 3 more episodes each time it "
         "reappears, folded into its mean); `noisy` is the preset for noisy tasks "
         f"({_settings(_beyond(PRESETS['noisy'], PRESETS['islands']))} "
-        "on top of the island preset), chosen on pour water with seeds 100–115, none of them "
+        "on top of the island preset), chosen on pour water with seeds 100–111, none of them "
         "reported here.",
         "",
     ]
