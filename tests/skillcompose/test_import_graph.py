@@ -95,8 +95,10 @@ def test_the_lazy_name_table_equals_the_imports_the_type_checker_reads() -> None
     tree = ast.parse((PACKAGE / "__init__.py").read_text("utf-8"))
     typed_names = {(str(a.asname), f".{node.module}") for node in ast.walk(tree)
                    if isinstance(node, ast.ImportFrom) and node.level == 1 for a in node.names}
-    assert typed_names == set(skillcompose._HOMES.items())
-    assert set(skillcompose.__all__) == set(skillcompose._HOMES) | {"__version__"}
+    table = {(name, f".{module}") for module, names in skillcompose._EXPORTS.items()
+             for name in names.split()}
+    assert typed_names == table
+    assert set(skillcompose.__all__) == {name for name, _ in table} | {"__version__"}
     for name in skillcompose.__all__:
         assert getattr(skillcompose, name) is not None
 
