@@ -508,15 +508,16 @@ class _Reader:
         return out
 
     def string(self, node: Node, what: str, *, state: str | None = None,
-               key: str | None = None, fix: str | None = None) -> str | None:
+               key: str | None = None, fix: str | None = None) -> str:
+        """The name ``node`` holds; "" (and a problem noted) when it holds no name."""
         if not isinstance(node, ScalarNode) or not str(node.tag).endswith(":str"):
             self.fail(node, f"{what} must be a name (text), got {_node_kind(node)}",
                       state=state, key=key, fix=fix)
-            return None
-        if not node.value:
+        elif not node.value:
             self.fail(node, f"{what} is empty", state=state, key=key, fix=fix)
-            return None
-        return str(node.value)
+        else:
+            return str(node.value)
+        return ""
 
     # -- the format ------------------------------------------------------------------------
     def read(self) -> FSA:
@@ -590,13 +591,11 @@ class _Reader:
                 self.fail(fnode, f"format {fv!r} is not supported; this version of "
                           f"skillcompose reads format {FORMAT_VERSION}", key="format",
                           fix=f"set `format: {FORMAT_VERSION}`")
-        name = ""
-        if "name" in top:
-            name = self.string(top["name"][1], "name", key="name") or ""
+        name = self.string(top["name"][1], "name", key="name") if "name" in top else ""
         start = ""
         if "start" in top:
             start = self.string(top["start"][1], "start", key="start",
-                                fix="set `start:` to the name of the first state") or ""
+                                fix="set `start:` to the name of the first state")
         step_limit: Any = DEFAULT_STEP_LIMIT
         if "step_limit" in top:
             node = top["step_limit"][1]
@@ -610,9 +609,8 @@ class _Reader:
                 self.fail(node, "terminals must be a list of outcome names",
                           key="terminals", fix="for example `terminals: [success, failure]`")
             else:
-                items = [self.string(v, "a terminal outcome", key="terminals")
-                         for v in node.value]
-                terminals = tuple(t for t in items if t)
+                terminals = tuple(self.string(v, "a terminal outcome", key="terminals")
+                                  for v in node.value)
         meta: dict[str, Any] = {}
         if "meta" in top:
             node = top["meta"][1]
@@ -620,9 +618,7 @@ class _Reader:
                 self.fail(node, "meta must be a mapping", key="meta")
             else:
                 meta = self.plain(node)
-        states: dict[str, State] = {}
-        if "states" in top:
-            states = self.read_states(*top["states"])
+        states = self.read_states(*top["states"]) if "states" in top else {}
         self.raise_if_problems()
         source = FileOrigin(self.path, dict(self.positions), self.text, root=root)
         try:
@@ -665,7 +661,7 @@ class _Reader:
         if "skill" in fields:
             self.mark(("states", sname, "skill"), fields["skill"][1])
             skill = self.string(fields["skill"][1], "skill", state=sname, key="skill",
-                                fix="write the skill's name, e.g. `skill: GraspObject`") or ""
+                                fix="write the skill's name, e.g. `skill: GraspObject`")
         params: dict[str, Any] = {}
         if "params" in fields:
             pnode = fields["params"][1]
@@ -695,7 +691,7 @@ class _Reader:
                 self.mark(("states", sname, "transitions", outcome), tv)
                 transitions[outcome] = self.string(
                     tv, f"the target of outcome {outcome!r}", state=sname, key=outcome,
-                    fix="write a state name or a terminal outcome such as success") or ""
+                    fix="write a state name or a terminal outcome such as success")
         time_limit: float | None = None
         if "time_limit" in fields:
             tnode = fields["time_limit"][1]
@@ -776,8 +772,11 @@ class FileOrigin(Source):
 
 
 def _dump(doc: Any) -> str:
+    yaml = YAML(typ="rt")
+    yaml.indent(mapping=2, sequence=4, offset=2)
+    yaml.width = 100
     buf = io.StringIO()
-    _yaml_out().dump(doc, buf)
+    yaml.dump(doc, buf)
     return buf.getvalue()
 
 
@@ -790,13 +789,6 @@ def save_fsa(
     text = dumps_fsa(fsa, registry, header=header)
     atomic_write(path, text.encode("utf-8"))
     return loads_fsa(text, str(Path(path)))
-
-
-def _yaml_out() -> YAML:
-    yaml = YAML(typ="rt")
-    yaml.indent(mapping=2, sequence=4, offset=2)
-    yaml.width = 100
-    return yaml
 
 
 def _py(value: Any) -> Any:
