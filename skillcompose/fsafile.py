@@ -57,6 +57,7 @@ from ruamel.yaml.events import (
     CollectionEndEvent,
     CollectionStartEvent,
     DocumentStartEvent,
+    MappingStartEvent,
     ScalarEvent,
     SequenceStartEvent,
 )
@@ -234,13 +235,12 @@ class _GuardedParser(RoundTripParser):
                     fix="remove the anchor and write each value out in full")))
                 event.anchor = None  # reported: the composer need not keep (or warn about) it
             tag = _tag_text(event.tag)
-            kind = ("scalar" if isinstance(event, ScalarEvent) else
-                    "seq" if isinstance(event, SequenceStartEvent) else "map")
-            if tag and tag != "!" and tag not in _EXPLICIT_TAGS[kind]:
-                allowed = ", ".join(sorted(_short_tag(t) for t in _EXPLICIT_TAGS[kind]))
+            kind, tags = _EXPLICIT_TAGS[type(event)]
+            if tag and tag != "!" and tag not in tags:
+                allowed = ", ".join(sorted(_short_tag(t) for t in tags))
                 self.problems.append(_at(mark, Problem(
                     f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
-                    f"data: no code, and on a {_KIND_NAMES[kind]} only {allowed})",
+                    f"data: no code, and on a {kind} only {allowed})",
                     fix=f"remove {_short_tag(tag)}")))
 
 
@@ -254,11 +254,11 @@ def _short_tag(tag: str) -> str:
     return "!!" + tag[len(_STD):] if tag.startswith(_STD) else tag
 
 
-_KIND_NAMES = {"scalar": "single value", "seq": "list", "map": "mapping"}
-_EXPLICIT_TAGS = {
-    "scalar": frozenset(_STD + t for t in ("str", "int", "float", "bool", "null")),
-    "seq": frozenset({_STD + "seq"}),
-    "map": frozenset({_STD + "map"}),
+_EXPLICIT_TAGS = {  # the tags allowed on each kind of node, and its name in messages
+    ScalarEvent: ("single value",
+                  frozenset(_STD + t for t in ("str", "int", "float", "bool", "null"))),
+    SequenceStartEvent: ("list", frozenset({_STD + "seq"})),
+    MappingStartEvent: ("mapping", frozenset({_STD + "map"})),
 }
 _INT_RE = re.compile(r"[-+]?(?:0b[01_]*[01][01_]*|0o[0-7_]*[0-7][0-7_]*"
                      r"|0x[0-9a-fA-F_]*[0-9a-fA-F][0-9a-fA-F_]*|[0-9_]*[0-9][0-9_]*)")
