@@ -171,8 +171,9 @@ class _Refused(Exception):
 
 
 def _at(mark: Any, problem: Problem) -> Problem:
-    """``problem`` at the 1-based position of the parser's 0-based ``mark``."""
-    return dataclasses.replace(problem, line=mark.line + 1, column=mark.column + 1)
+    """``problem`` at the 1-based position of the parser's 0-based ``mark`` (1:1 if None)."""
+    line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+    return dataclasses.replace(problem, line=line, column=col)
 
 
 class _GuardedParser(RoundTripParser):
@@ -546,14 +547,11 @@ class _Reader:
         try:
             root = yaml.compose(self.text)
         except MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            line = mark.line + 1 if mark is not None else 1
-            col = mark.column + 1 if mark is not None else 1
             what = exc.problem or exc.context or "malformed YAML"
-            raise _Refused(Problem(
+            raise _Refused(_at(exc.problem_mark or exc.context_mark, Problem(
                 f"not valid YAML: {what}", fix="check indentation, colons and quotes near "
-                "this line", line=line, column=col,
-            )) from None
+                "this line",
+            ))) from None
         except ReaderError as exc:
             line, col = _line_col(self.text, exc.position)
             char = exc.character
@@ -565,12 +563,10 @@ class _Reader:
             )) from None
         except (YAMLError, RecursionError, ValueError, TypeError, LookupError,
                 AttributeError, AssertionError) as exc:  # the YAML library's own slips
-            mark = parser.last_mark
-            line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
-            raise _Refused(Problem(
+            raise _Refused(_at(parser.last_mark, Problem(
                 f"not valid YAML: {type(exc).__name__}: {clip(str(exc), 80)}",
-                fix="check the YAML near this line", line=line, column=col,
-            )) from None
+                fix="check the YAML near this line",
+            ))) from None
         self.problems.extend(parser.problems)
         return yaml, root
 
