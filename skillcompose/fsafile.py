@@ -475,18 +475,13 @@ class _Reader:
         self.values[id(node)] = value
         return True
 
-    def scalar(self, node: Node) -> Any:
-        if not isinstance(node, ScalarNode):
-            return self.plain(node)
-        return self.values[id(node)]
-
     def plain(self, node: Node) -> Any:
         """The node as plain Python data (its depth is bounded by :data:`MAX_DEPTH`)."""
         if isinstance(node, MappingNode):
-            return {str(self.scalar(k)): self.plain(v) for k, v in node.value}
+            return {str(self.plain(k)): self.plain(v) for k, v in node.value}
         if isinstance(node, SequenceNode):
             return [self.plain(v) for v in node.value]
-        return self.scalar(node)
+        return self.values[id(node)]
 
     def mapping(
         self, node: Node, what: str, allowed: tuple[str, ...] | None, *,
@@ -498,7 +493,7 @@ class _Reader:
             return None
         out: dict[str, tuple[Node, Node]] = {}
         for k, v in node.value:  # plain, distinct keys: check_keys saw to that
-            key = str(self.scalar(k)) if k.value != "" else ""
+            key = str(self.plain(k)) if k.value != "" else ""
             if allowed is not None and key not in allowed:
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f"did you mean {close[0]!r}?" if close else \
@@ -582,7 +577,7 @@ class _Reader:
                 self.fail(root, f"missing top-level key {req!r}", key=req, fix=f"add `{example}`")
         if "format" in top:
             fnode = top["format"][1]
-            fv = self.scalar(fnode)
+            fv = self.plain(fnode)
             if fv != FORMAT_VERSION or isinstance(fv, bool):
                 self.fail(fnode, f"format {fv!r} is not supported; this version of "
                           f"skillcompose reads format {FORMAT_VERSION}", key="format",
@@ -595,7 +590,7 @@ class _Reader:
         step_limit: Any = DEFAULT_STEP_LIMIT
         if "step_limit" in top:
             node = top["step_limit"][1]
-            step_limit = self.scalar(node)
+            step_limit = self.plain(node)
             if self.report(node, step_limit_problem(step_limit)):
                 step_limit = DEFAULT_STEP_LIMIT
         terminals: tuple[str, ...] = DEFAULT_TERMINALS
@@ -671,9 +666,9 @@ class _Reader:
                 if isinstance(pv, SequenceNode) and all(
                     isinstance(item, ScalarNode) for item in pv.value
                 ):  # a vector parameter: one flat list of numbers
-                    params[pname] = tuple(self.scalar(item) for item in pv.value)
+                    params[pname] = tuple(self.plain(item) for item in pv.value)
                 elif isinstance(pv, ScalarNode):
-                    params[pname] = self.scalar(pv)
+                    params[pname] = self.plain(pv)
                 else:
                     self.fail(pv, f"parameter {pname!r} must be a single value (number, "
                               "true/false or text) or, for a vector parameter, a flat list "
@@ -692,7 +687,7 @@ class _Reader:
         if "time_limit" in fields:
             tnode = fields["time_limit"][1]
             self.mark(("states", sname, "time_limit"), tnode)
-            value = self.scalar(tnode)
+            value = self.plain(tnode)
             if not self.report(tnode, time_limit_problem(value, sname)):
                 time_limit = float(value)
         return State(skill, params, transitions, time_limit)

@@ -204,8 +204,7 @@ class ParamSpec:
         if self.kind == "bool":
             return 0.75 if value else 0.25
         if self.kind == "choice":
-            n = len(self.choices)
-            return (self.choices.index(value) + 0.5) / n
+            return (self.choices.index(value) + 0.5) / len(self.choices)
         if self.size is not None:
             raise ParamError(f"parameter {self.name!r} is a vector; use to_genes")
         return self._scalar_to_unit(value)
