@@ -230,13 +230,11 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
     """Split ``reps`` so that the points times their chunks keep ``workers`` busy."""
-    import numpy as np
-
     if workers == 1:
         return [(0, reps)]
     per_point = max(1, min(reps // 500 or 1, math.ceil(4 * workers / points)))
-    bounds = np.linspace(0, reps, per_point + 1).round().astype(int)
-    return [(int(a), int(b)) for a, b in itertools.pairwise(bounds.tolist()) if b > a]
+    bounds = [k * reps // per_point for k in range(per_point + 1)]
+    return [(a, b) for a, b in itertools.pairwise(bounds) if b > a]
 
 
 def _build(ref: TaskRef, setting: str, value: float) -> Task:
