@@ -45,6 +45,7 @@ import math
 import os
 import re
 from collections.abc import Collection, Mapping
+from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -797,22 +798,16 @@ def _py(value: Any) -> Any:
     return value
 
 
-def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | None:
-    try:
-        return None if registry is None else registry.spec(skill).param(pname).describe_range()
-    except (UnknownSkillError, ParamError):  # not the registry's: no comment
-        return None
-
-
 def _state_map(st: State, registry: Registry | None) -> CommentedMap:
     """A new state's mapping, its parameters' units and ranges and its time limit's unit as
     comments."""
     m = CommentedMap()
     _sync_state(m, st)
-    for k in st.params:
-        c = _param_comment(registry, st.skill, k)
-        if c:
-            m["params"].yaml_add_eol_comment(c, k)
+    if registry is not None:
+        for k in st.params:
+            with suppress(UnknownSkillError, ParamError):  # not the registry's: no comment
+                comment = registry.spec(st.skill).param(k).describe_range()
+                m["params"].yaml_add_eol_comment(comment, k)
     if st.time_limit is not None:
         m.yaml_add_eol_comment("s: a longer state ends with `timeout`", "time_limit")
     return m
