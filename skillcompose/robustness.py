@@ -287,22 +287,19 @@ def parse_values(text: str) -> list[float]:
             if len(parts) != 3 or len(parts[2].strip()) > 12:
                 raise ValueError(text)
             start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
-            if not 1 <= count <= MAX_SWEEP_POINTS:
-                raise RobustnessError(
-                    f"sweep {shown!r}: COUNT must be from 1 to {MAX_SWEEP_POINTS}; {forms}"
-                )
-            if not (math.isfinite(start) and math.isfinite(stop)):
+            if not (1 <= count <= MAX_SWEEP_POINTS and math.isfinite(start)
+                    and math.isfinite(stop)):
                 raise ValueError(text)
             if count == 1:
                 return [start]
             return [round(float(v), 12) for v in np.linspace(start, stop, count)]
         values = [float(p) for p in text.split(",", MAX_SWEEP_POINTS) if p.strip()]
+        if len(values) > MAX_SWEEP_POINTS or not all(math.isfinite(v) for v in values):
+            raise ValueError(text)
     except ValueError:
         raise RobustnessError(f"cannot read the sweep {shown!r}; {forms}") from None
     if not values:
         raise RobustnessError(f"the sweep {shown!r} has no values; {forms}")
-    if len(values) > MAX_SWEEP_POINTS or not all(math.isfinite(v) for v in values):
-        raise RobustnessError(f"cannot read the sweep {shown!r}; {forms}")
     return values
 
 
