@@ -22,6 +22,7 @@ instance.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -92,9 +93,9 @@ class BlackboardBridge:
                 )
             self.names[k] = name
         self.client = py_trees.blackboard.Client(name=f"skillcompose:{owner}")
-        for k in sorted(keys):
+        for k, name in self.names.items():
             access = TreeAccess.WRITE if k in self.to_tree else TreeAccess.READ
-            self.client.register_key(key=self.names[k], access=access)
+            self.client.register_key(key=name, access=access)
 
     def pull(self, bb: Blackboard) -> None:
         """Tree → ``bb`` for the ``from_tree`` keys the tree holds (typed keys stay checked)."""
@@ -393,15 +394,11 @@ class TreeSkill(Skill):
 _OUTCOMES = {Status.RUNNING: RUNNING, Status.SUCCESS: "success", Status.FAILURE: "failure"}
 
 
+@dataclass(slots=True, eq=False)
 class _TreeActivation:
-    __slots__ = ("bb", "root", "skill")
-
-    def __init__(
-        self, skill: TreeSkill, root: py_trees.behaviour.Behaviour, bb: Blackboard
-    ) -> None:
-        self.skill = skill
-        self.root = root
-        self.bb = bb
+    skill: TreeSkill
+    root: py_trees.behaviour.Behaviour
+    bb: Blackboard
 
     def tick(self) -> str:
         bridge = self.skill.bridge
