@@ -325,8 +325,9 @@ def _make_skill(
         func = obj.start
         outcome_source = tick
     elif is_class:
-        call = getattr(obj, "__call__", None)  # noqa: B004 - we want the class attribute
-        if call is None or call is object.__call__:
+        # the class's own __call__ (or a base's): getattr would find the metaclass's
+        call = next((vars(c)["__call__"] for c in obj.__mro__ if "__call__" in vars(c)), None)
+        if call is None:
             raise SkillDefinitionError(
                 f"class {obj.__name__} cannot be a skill: define "
                 "`def __call__(self, bb, rng, *, params...) -> Literal[...]`, or "
