@@ -479,18 +479,16 @@ def merge_page(old: str, new: str, measured: Sequence[str]) -> str:
 
 
 def combine_pages(page: str, other: str) -> str:
-    """``page`` with every section of ``other`` (a page this script wrote elsewhere, such as
-    on another branch) in place of its own, each section still naming the run that measured
-    it; nothing is measured."""
+    """``page`` with the sections that the run which wrote ``other`` (a page of this script
+    from elsewhere, such as another branch) measured, in place of its own; each section still
+    names the run that measured it, and nothing is measured."""
     head, sections = _split_page(page)
     other_head, other_sections = _split_page(other)
-    earlier = " ".join(line.strip() for line in other_head.splitlines()
-                       if line.startswith(("Command:", "Machine:")))
+    command = next((line.split("`")[1] for line in other_head.splitlines()
+                    if line.startswith("Command:") and line.count("`") >= 2), None)
     for name, section in other_sections.items():
-        if RUN_MARK not in section:
-            heading, rest = section.split("\n", 1)
-            section = f"{heading}\n\n{RUN_MARK}of an earlier page ({earlier}).\n{rest}"
-        sections[name] = section
+        if command is not None and f"(`{command}`)" in section:
+            sections[name] = section
     head = "".join(line for line in head.splitlines(keepends=True)
                    if not line.startswith("This run measured"))
     order = [b.name for b in BENCHES if b.name in sections]
@@ -530,8 +528,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--out", default=None,
                    help="output folder (default docs/results; --quick needs one)")
     p.add_argument("--merge-from", metavar="PAGE", default=None,
-                   help="measure nothing: put the sections of PAGE, a page this script wrote "
-                        "(on another branch, say), into the output folder's page")
+                   help="measure nothing: put the sections that the run which wrote PAGE "
+                        "(on another branch, say) measured into the output folder's page")
     args = p.parse_args(argv)
     if args.merge_from:
         page = Path(args.out or ROOT / "docs" / "results") / "search.md"

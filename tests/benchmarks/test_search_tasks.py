@@ -120,14 +120,19 @@ def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     assert bench_search.merge_page(old, old, ["all"]) == old  # nothing kept: as measured
 
 
-def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: Path) -> None:
+def test_merge_from_takes_the_sections_the_other_run_measured(tmp_path: Path) -> None:
     mine = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only maze`  \n"
             "Machine: mine.\n\nThis run measured maze (wall following); the other ...\n\n"
             "## ant, Santa Fe trail\n\nold Santa Fe table\n\n"
-            f"## maze (wall following)\n\n{bench_search.RUN_MARK}of mine.\n\nmy maze table\n")
+            "## maze (wall following)\n\n"
+            f"{bench_search.RUN_MARK}of 1 (`python benchmarks/bench_search.py --only maze`)."
+            "\n\nmy maze table\n")
     other = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only Santa`  \n"
-             "Machine: other.\n\n## ant, Santa Fe trail\n\n"
-             f"{bench_search.RUN_MARK}of theirs.\n\nnew Santa Fe table\n")
+             "Machine: other.\n\nThis run measured ...\n\n## ant, Santa Fe trail\n\n"
+             f"{bench_search.RUN_MARK}of 2 (`python benchmarks/bench_search.py --only Santa`)."
+             "\n\nnew Santa Fe table\n\n## maze (wall following)\n\n"
+             f"{bench_search.RUN_MARK}of 0 (`python benchmarks/bench_search.py `)."
+             "\n\nan older maze table\n")
     (tmp_path / "search.md").write_text(mine, encoding="utf-8")
     (tmp_path / "other.md").write_text(other, encoding="utf-8")
     assert bench_search.main(["--out", str(tmp_path), "--merge-from",
@@ -135,7 +140,7 @@ def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: 
     text = (tmp_path / "search.md").read_text(encoding="utf-8")
     assert "Machine: mine." in text and "This run measured" not in text
     assert "new Santa Fe table" in text and "old Santa Fe table" not in text
-    assert f"{bench_search.RUN_MARK}of theirs." in text and "my maze table" in text
+    assert "my maze table" in text and "an older maze table" not in text  # kept there: not its
     assert [line for line in text.splitlines() if line.startswith("## ")] == [
         "## ant, Santa Fe trail", "## maze (wall following)"]
     with pytest.raises(SystemExit):
