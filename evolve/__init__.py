@@ -15,149 +15,67 @@ saved as an editable FSA file that ``skillcompose run`` runs and ``--seed-fsa`` 
 
 from __future__ import annotations
 
-import importlib
-import sys
-import types
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .algorithm import EvolutionResult, GenerationRecord, check_fresh, evolve
-    from .config import PRESETS, EvolutionConfig
-    from .errors import CheckpointError, EvolutionConfigError, EvolutionError, SeedFSAError
-    from .evaluation import (
-        BACKENDS,
-        EvalLimits,
-        Faults,
-        Job,
-        ProcessEvaluator,
-        RayEvaluator,
-        SerialEvaluator,
-        evaluate_genome,
-        make_evaluator,
+    from .algorithm import EvolutionResult as EvolutionResult
+    from .algorithm import GenerationRecord as GenerationRecord
+    from .algorithm import check_fresh as check_fresh
+    from .algorithm import evolve as evolve
+    from .config import PRESETS as PRESETS
+    from .config import EvolutionConfig as EvolutionConfig
+    from .errors import CheckpointError as CheckpointError
+    from .errors import EvolutionConfigError as EvolutionConfigError
+    from .errors import EvolutionError as EvolutionError
+    from .errors import SeedFSAError as SeedFSAError
+    from .evaluation import BACKENDS as BACKENDS
+    from .evaluation import EvalLimits as EvalLimits
+    from .evaluation import Faults as Faults
+    from .evaluation import Job as Job
+    from .evaluation import ProcessEvaluator as ProcessEvaluator
+    from .evaluation import RayEvaluator as RayEvaluator
+    from .evaluation import SerialEvaluator as SerialEvaluator
+    from .evaluation import evaluate_genome as evaluate_genome
+    from .evaluation import make_evaluator as make_evaluator
+    from .genome import Genome as Genome
+    from .genome import GenomeCompiler as GenomeCompiler
+    from .genome import Node as Node
+    from .genome import SkillChoice as SkillChoice
+    from .genome import SkillSet as SkillSet
+    from .operators import add_node as add_node
+    from .operators import change_start as change_start
+    from .operators import crossover as crossover
+    from .operators import delete_node as delete_node
+    from .operators import fix_start as fix_start
+    from .operators import initialize as initialize
+    from .operators import mutate as mutate
+    from .operators import mutate_genes as mutate_genes
+    from .operators import mutate_node as mutate_node
+    from .rundir import RunDir as RunDir
+    from .rundir import draw_fsa as draw_fsa
+    from .rundir import plot_history as plot_history
+    from .simplify import merge_duplicates as merge_duplicates
+    from .simplify import simplify as simplify
+else:
+    import lazy_loader
+
+    # Each public name is imported with its module when it is first used, so that importing
+    # the package (the command line's --help does) stays cheap. The table repeats the imports
+    # above, which only the type checker runs; a test keeps the two equal. lazy_loader also
+    # keeps the function ``simplify`` from being replaced by the module ``evolve.simplify``
+    # when that is imported.
+    _EXPORTS = {
+        "algorithm": "EvolutionResult GenerationRecord check_fresh evolve",
+        "config": "PRESETS EvolutionConfig",
+        "errors": "CheckpointError EvolutionConfigError EvolutionError SeedFSAError",
+        "evaluation": ("BACKENDS EvalLimits Faults Job ProcessEvaluator RayEvaluator "
+                       "SerialEvaluator evaluate_genome make_evaluator"),
+        "genome": "Genome GenomeCompiler Node SkillChoice SkillSet",
+        "operators": ("add_node change_start crossover delete_node fix_start initialize mutate "
+                      "mutate_genes mutate_node"),
+        "rundir": "RunDir draw_fsa plot_history",
+        "simplify": "merge_duplicates simplify",
+    }
+    __getattr__, __dir__, __all__ = lazy_loader.attach(
+        __name__, submod_attrs={module: names.split() for module, names in _EXPORTS.items()}
     )
-    from .genome import Genome, GenomeCompiler, Node, SkillChoice, SkillSet
-    from .operators import (
-        add_node,
-        change_start,
-        crossover,
-        delete_node,
-        fix_start,
-        initialize,
-        mutate,
-        mutate_genes,
-        mutate_node,
-    )
-    from .rundir import RunDir, draw_fsa, plot_history
-    from .simplify import merge_duplicates, simplify
-
-# Each public name and the module that defines it: the package imports that module when the
-# name is first used, so that importing the package (the command line's --help does) stays
-# cheap.
-_HOMES = {
-    "merge_duplicates": ".simplify",
-    "simplify": ".simplify",
-    "BACKENDS": ".evaluation",
-    "CheckpointError": ".errors",
-    "EvalLimits": ".evaluation",
-    "EvolutionConfig": ".config",
-    "EvolutionConfigError": ".errors",
-    "EvolutionError": ".errors",
-    "EvolutionResult": ".algorithm",
-    "Faults": ".evaluation",
-    "GenerationRecord": ".algorithm",
-    "Genome": ".genome",
-    "GenomeCompiler": ".genome",
-    "Job": ".evaluation",
-    "Node": ".genome",
-    "PRESETS": ".config",
-    "ProcessEvaluator": ".evaluation",
-    "RayEvaluator": ".evaluation",
-    "RunDir": ".rundir",
-    "SeedFSAError": ".errors",
-    "SerialEvaluator": ".evaluation",
-    "SkillChoice": ".genome",
-    "SkillSet": ".genome",
-    "add_node": ".operators",
-    "change_start": ".operators",
-    "check_fresh": ".algorithm",
-    "crossover": ".operators",
-    "delete_node": ".operators",
-    "draw_fsa": ".rundir",
-    "evaluate_genome": ".evaluation",
-    "evolve": ".algorithm",
-    "fix_start": ".operators",
-    "initialize": ".operators",
-    "make_evaluator": ".evaluation",
-    "mutate": ".operators",
-    "mutate_genes": ".operators",
-    "mutate_node": ".operators",
-    "plot_history": ".rundir",
-}
-
-__all__ = [
-    "BACKENDS",
-    "PRESETS",
-    "CheckpointError",
-    "EvalLimits",
-    "EvolutionConfig",
-    "EvolutionConfigError",
-    "EvolutionError",
-    "EvolutionResult",
-    "Faults",
-    "GenerationRecord",
-    "Genome",
-    "GenomeCompiler",
-    "Job",
-    "Node",
-    "ProcessEvaluator",
-    "RayEvaluator",
-    "RunDir",
-    "SeedFSAError",
-    "SerialEvaluator",
-    "SkillChoice",
-    "SkillSet",
-    "add_node",
-    "change_start",
-    "check_fresh",
-    "crossover",
-    "delete_node",
-    "draw_fsa",
-    "evaluate_genome",
-    "evolve",
-    "fix_start",
-    "initialize",
-    "make_evaluator",
-    "merge_duplicates",
-    "mutate",
-    "mutate_genes",
-    "mutate_node",
-    "plot_history",
-    "simplify",
-]
-
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(home, __name__), name)
-    globals()[name] = value  # later uses skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
-
-class _Package(types.ModuleType):
-    """The package's module object. ``simplify`` names both a function and the module
-    ``evolve.simplify``; importing that module would set the package's ``simplify`` to the
-    module, so a public name is never replaced by a submodule (``sys.modules`` keeps it)."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name in _HOMES and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

@@ -186,6 +186,7 @@ class _Run:
         self.generation = 0
         self.population: list[Genome] = []
         self.best: tuple[Genome, float, int] | None = None  # genome, fitness, generation
+        self.best_index = 0  # where the best was found in its generation's population
         self.history: list[GenerationRecord] = []
         self.cache: dict[tuple[Any, ...], tuple[float, int]] = {}
         self.evaluations = 0
@@ -516,6 +517,7 @@ class _Run:
         )
         if improved:
             self.best = (self.population[bi].copy(), bf, self.generation)
+            self.best_index = bi
         self.evaluations += episodes
         finite = [f for f in fitness if math.isfinite(f)] or [math.inf]
         rec = GenerationRecord(
@@ -540,11 +542,14 @@ class _Run:
                                        self.header())
         return rec
 
-    def confirm(self) -> bool:
+    def confirm(self, fitness: list[float]) -> bool:
         """Re-run the best genome on ``confirm_trials`` fresh worlds; it stays the best (and
         the task solved) only if it reaches the target there too (its mean, or, with
         ``confirm_rate``, that share of the episodes), else its fitness becomes that measured
-        mean and evolution goes on."""
+        mean and evolution goes on. With ``confirm_feedback`` a genome that fails also takes,
+        in ``fitness`` (this generation's, which breeds the next) and in the cache, the mean
+        of its evaluation's and its confirmation's episodes, wherever it is in the
+        population."""
         assert self.best is not None
         g, _, gen = self.best
         trials = 1 if self.task.deterministic else self.cfg.confirm_trials
@@ -564,7 +569,28 @@ class _Run:
         elif self.task.solved(mean):
             return True
         self.best = (g, mean, gen)
+        if self.cfg.confirm_feedback:
+            self.demote(g, fitness, mean, trials)
         return False
+
+    def demote(self, g: Genome, fitness: list[float], mean: float, trials: int) -> None:
+        """Fold a failed confirmation into the fitness of ``g`` (every copy of it in the
+        population) and into the cache."""
+        key = g.key()
+        f = fitness[self.best_index]
+        if self.cfg.cache and key in self.cache:
+            total, count = self.cache[key]
+        else:
+            total, count = f * self.trials, self.trials
+        if math.isinf(total) or math.isinf(mean):  # as evaluate() folds a worst score
+            total, count = mean, 1
+        else:
+            total, count = total + mean * trials, count + trials
+        if self.cfg.cache:
+            self.cache[key] = (total, count)
+        for i, ind in enumerate(self.population):
+            if ind.key() == key:
+                fitness[i] = total / count
 
     # -- export ----------------------------------------------------------------------------
     def best_fsa(self, simplified: dict[str, Any] | None = None) -> FSA:
@@ -997,7 +1023,7 @@ def _evolve(
                 assert run.best is not None
                 solved = task.solved(run.best[1])
                 if solved and cfg.confirm_trials:
-                    solved = run.confirm()
+                    solved = run.confirm(fitness)
         finally:
             run.evaluator.close()
             run.close_progress()

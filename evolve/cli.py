@@ -81,7 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "parameters, e.g. a network's weights: N=150, 20 shared trials, "
                    "every mutated node's parameters perturbed, confirmed on 200 fresh "
                    "trials) or islands (robust on 4 islands of 150 with ring migration and "
-                   "unique children; add --cache on a deterministic task) or deterministic "
+                   "unique children; add --cache on a deterministic task) or noisy "
+                   "(islands, the cache keeping each genome's trials, solutions confirmed "
+                   "on 100 fixed fresh trials, all of which must pass) or deterministic "
                    "(for tasks whose fitness never changes: N=30, cache, unique children, "
                    "elitism 2, tournament 5, S=12); the flags below "
                    "override it")
@@ -119,6 +121,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--confirm-rate", type=number(0.0, 1.0), dest="confirm_rate",
                    help="with --confirm, the share of those trials that must each reach the "
                         "target (default: their mean must)")
+    p.add_argument("--confirm-feedback", action="store_true", dest="confirm_feedback",
+                   help="with --confirm, a solution that fails its confirmation also takes "
+                        "that fitness in the population (and the cache), so the next "
+                        "candidate is confirmed instead of it")
     p.add_argument("--islands", type=whole(1, 10_000),
                    help="split the population into this many islands bred apart, with "
                    "migration (default 1: one population); --population is the total")
@@ -210,6 +216,8 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
         changes["parsimony"] = True
     if args.unique_children:
         changes["unique_children"] = True
+    if args.confirm_feedback:
+        changes["confirm_feedback"] = True
     if args.neutral:
         changes["neutral"] = True
     return changes
@@ -251,7 +259,8 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
     flags = {name: opt for opt, name in _SETTING_OPTIONS}
     flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
-                 unique_children="unique_children", neutral="neutral",
+                 unique_children="unique_children", confirm_feedback="confirm_feedback",
+                 neutral="neutral",
                  eval_time_limit="eval_time_limit")
     for name, value in _given_settings(args).items():
         if name in FREE_SETTINGS:

@@ -60,6 +60,12 @@ class EvolutionConfig:
       scores with small ones, such as stacking's 50 for a run that never grasped); its
       confirmations all use the same worlds, drawn once per run, so that an FSA confirmed
       again generation after generation cannot pass by a lucky draw at last.
+      ``confirm_feedback``: a genome that fails its confirmation also takes, in the
+      population (and in the cache), the mean fitness of its evaluation and its
+      confirmation episodes, so that it loses its place among the best and the next
+      candidate is confirmed instead of it (without it, only the run's record of the best
+      changes, and the same genome, still scoring the target in the population, is confirmed
+      again).
 
     Islands and diversity (all off by default; see docs/evolve.md, "Islands"):
 
@@ -119,6 +125,7 @@ class EvolutionConfig:
     parsimony: bool = False
     confirm_trials: int = 0
     confirm_rate: float = 0.0
+    confirm_feedback: bool = False
     p_param: float = 0.0
     islands: int = 1
     migration_interval: int = 10
@@ -163,7 +170,7 @@ class EvolutionConfig:
         if self.topology not in TOPOLOGIES:
             problems.append(f"topology = {self.topology!r}: choose one of "
                             f"{', '.join(TOPOLOGIES)}")
-        for name in ("unique_children", "neutral"):
+        for name in ("unique_children", "confirm_feedback", "neutral"):
             if not isinstance(getattr(self, name), bool):
                 problems.append(f"{name} = {getattr(self, name)!r}: expected true or false")
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
@@ -243,15 +250,25 @@ _ROBUST: dict[str, Any] = {
     "confirm_trials": 20,
 }
 
+_ISLANDS: dict[str, Any] = {  # the robust preset, its population on islands
+    **_ROBUST,
+    "islands": 4,
+    "migration_interval": 10,
+    "migrants": 2,
+    "unique_children": True,
+}
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
     "robust": dict(_ROBUST),
-    "islands": {  # the robust preset, its population on islands
-        **_ROBUST,
-        "islands": 4,
-        "migration_interval": 10,
-        "migrants": 2,
-        "unique_children": True,
+    "islands": dict(_ISLANDS),
+    "noisy": {  # the island preset, each genome's trials kept, a strict confirmation
+        **_ISLANDS,
+        "cache": True,
+        "cache_refresh": 3,
+        "confirm_trials": 100,
+        "confirm_rate": 1.0,
+        "confirm_feedback": True,
     },
     "deterministic": {
         "population": 30,
@@ -287,6 +304,13 @@ evaluation shared by the generation (a success rate near 0.95 must be told from 
 0.85), the two best surviving, tournaments of 3, initial FSAs of 12 nodes, every mutated
 node's parameters perturbed (``p_param`` 1, noise 0.05), and a solution confirmed on 200
 fresh episodes.
+
+``noisy`` is for noisy tasks where a solution must hold on nearly every episode, chosen on
+the pour-water task (see docs/results/search.md): the island preset, with the cache keeping
+every trial a genome has had (3 more each time it reappears, folded into its mean), and a
+solution confirmed on 100 fresh worlds, the same for the whole run, every one of which it
+must solve; a genome that fails its confirmation takes that fitness in the population, so
+the next candidate is confirmed.
 
 ``deterministic`` is for tasks whose fitness never changes from one episode to the next
 (``Task.deterministic``: the classic FSA benchmarks in ``benchmarks/``, chosen there with

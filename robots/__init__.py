@@ -5,92 +5,43 @@ Units: metres [m] and radians [rad]; frames are named in every function name.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from robots.errors import (
-        ChainNotFound,
-        DatasetError,
-        FrameNotFound,
-        InvalidConfiguration,
-        RobotDataNotFound,
-        RobotModelError,
+    from .errors import ChainNotFound as ChainNotFound
+    from .errors import DatasetError as DatasetError
+    from .errors import FrameNotFound as FrameNotFound
+    from .errors import InvalidConfiguration as InvalidConfiguration
+    from .errors import RobotDataNotFound as RobotDataNotFound
+    from .errors import RobotModelError as RobotModelError
+    from .ik import IKResult as IKResult
+    from .ik import IKSolver as IKSolver
+    from .ik import IKStatus as IKStatus
+    from .ik import IKTarget as IKTarget
+    from .ik import solve_ik as solve_ik
+    from .model import ARM_JOINTS as ARM_JOINTS
+    from .model import ARMS as ARMS
+    from .model import CHAIN_LAYOUT as CHAIN_LAYOUT
+    from .model import TOOL_FRAMES as TOOL_FRAMES
+    from .model import Arm as Arm
+    from .model import KinematicChain as KinematicChain
+    from .model import RobotModel as RobotModel
+    from .model import RobotPose as RobotPose
+    from .model import find_pr2_urdf as find_pr2_urdf
+    from .model import load_pr2 as load_pr2
+else:
+    import lazy_loader
+
+    # Each public name is imported with its module when it is first used, so that importing
+    # the package stays cheap (Pinocchio loads with robots.model). The table repeats the
+    # imports above, which only the type checker runs; a test keeps the two equal.
+    _EXPORTS = {
+        "errors": ("ChainNotFound DatasetError FrameNotFound InvalidConfiguration "
+                   "RobotDataNotFound RobotModelError"),
+        "ik": "IKResult IKSolver IKStatus IKTarget solve_ik",
+        "model": ("ARMS ARM_JOINTS CHAIN_LAYOUT TOOL_FRAMES Arm KinematicChain RobotModel "
+                  "RobotPose find_pr2_urdf load_pr2"),
+    }
+    __getattr__, __dir__, __all__ = lazy_loader.attach(
+        __name__, submod_attrs={module: names.split() for module, names in _EXPORTS.items()}
     )
-    from robots.ik import IKResult, IKSolver, IKStatus, IKTarget, solve_ik
-    from robots.model import (
-        ARM_JOINTS,
-        ARMS,
-        CHAIN_LAYOUT,
-        TOOL_FRAMES,
-        Arm,
-        KinematicChain,
-        RobotModel,
-        RobotPose,
-        find_pr2_urdf,
-        load_pr2,
-    )
-
-# Each public name and the module that defines it: the package imports that module when the
-# name is first used, so that importing the package (the command line's --help does) stays
-# cheap.
-_HOMES = {
-    "ARMS": "robots.model",
-    "ARM_JOINTS": "robots.model",
-    "Arm": "robots.model",
-    "CHAIN_LAYOUT": "robots.model",
-    "ChainNotFound": "robots.errors",
-    "DatasetError": "robots.errors",
-    "FrameNotFound": "robots.errors",
-    "IKResult": "robots.ik",
-    "IKSolver": "robots.ik",
-    "IKStatus": "robots.ik",
-    "IKTarget": "robots.ik",
-    "InvalidConfiguration": "robots.errors",
-    "KinematicChain": "robots.model",
-    "RobotDataNotFound": "robots.errors",
-    "RobotModel": "robots.model",
-    "RobotModelError": "robots.errors",
-    "RobotPose": "robots.model",
-    "TOOL_FRAMES": "robots.model",
-    "find_pr2_urdf": "robots.model",
-    "load_pr2": "robots.model",
-    "solve_ik": "robots.ik",
-}
-
-__all__ = [
-    "ARMS",
-    "ARM_JOINTS",
-    "CHAIN_LAYOUT",
-    "TOOL_FRAMES",
-    "Arm",
-    "ChainNotFound",
-    "DatasetError",
-    "FrameNotFound",
-    "IKResult",
-    "IKSolver",
-    "IKStatus",
-    "IKTarget",
-    "InvalidConfiguration",
-    "KinematicChain",
-    "RobotDataNotFound",
-    "RobotModel",
-    "RobotModelError",
-    "RobotPose",
-    "find_pr2_urdf",
-    "load_pr2",
-    "solve_ik",
-]
-
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(home, __name__), name)
-    globals()[name] = value  # later uses skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))

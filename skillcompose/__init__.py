@@ -8,10 +8,7 @@ The public API; examples and user code import from here::
 
 from __future__ import annotations
 
-import importlib
-import sys
-import types
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
@@ -72,11 +69,14 @@ if TYPE_CHECKING:
     from .task import load_task as load_task
     from .task import trials as trials
 else:
+    import lazy_loader
+
     # Each public name is imported with its module when it is first used (``from
     # skillcompose import FSA`` imports skillcompose.fsa), so that importing one module of the
     # package (``skillcompose --help`` imports skillcompose.cli) does not load the whole runtime
     # and numpy. The table repeats the imports above, which only the type checker runs; a
-    # test keeps the two equal.
+    # test keeps the two equal. lazy_loader also keeps the decorator ``skill`` from being
+    # replaced by the module ``skillcompose.skill`` when that is imported.
     _EXPORTS = {
         "activation": "RUNNING Activation",
         "blackboard": "DELETED Access Blackboard diff",
@@ -94,26 +94,10 @@ else:
         "skill": "Skill SkillSpec skill",
         "task": "Task TaskError TaskRef Trial load_task trials",
     }
-    _HOMES = {name: f".{module}" for module, names in _EXPORTS.items()
-              for name in names.split()}
-    __all__ = [*_HOMES, "__version__"]
-
-    def __getattr__(name: str) -> Any:
-        if name not in _HOMES:
-            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(_HOMES[name], __name__), name)
-        globals()[name] = value  # later uses skip this function
-        return value
+    __getattr__, _, __all__ = lazy_loader.attach(
+        __name__, submod_attrs={module: names.split() for module, names in _EXPORTS.items()}
+    )
+    __all__ += ["__version__"]
 
     def __dir__() -> list[str]:
         return sorted(set(globals()) | set(__all__))
-
-    class _Package(types.ModuleType):
-        """``skill`` names both the decorator and the module ``skillcompose.skill``; importing
-        that module sets the package's attribute to it, which this class ignores."""
-
-        def __setattr__(self, name: str, value: Any) -> None:
-            if not (name in _HOMES and isinstance(value, types.ModuleType)):
-                super().__setattr__(name, value)
-
-    sys.modules[__name__].__class__ = _Package

@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import threading
 from collections.abc import Callable, Generator
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -48,15 +49,13 @@ Starter = Callable[..., Activation]
 """``start(bb, rng, **params) -> Activation``."""
 
 
+@dataclass(slots=True, eq=False)
 class InstanceActivation:
     """A start / tick / cancel object: ``tick(bb, rng)``, ``cancel(bb)`` (optional)."""
 
-    __slots__ = ("bb", "obj", "rng")
-
-    def __init__(self, obj: Any, bb: Blackboard, rng: np.random.Generator) -> None:
-        self.obj = obj
-        self.bb = bb
-        self.rng = rng
+    obj: Any
+    bb: Blackboard
+    rng: np.random.Generator
 
     def tick(self) -> str:
         out: str = self.obj.tick(self.bb, self.rng)
@@ -68,14 +67,12 @@ class InstanceActivation:
             hook(self.bb)
 
 
+@dataclass(slots=True, eq=False)
 class GeneratorActivation:
     """A generator skill: each tick resumes it; ``cancel`` closes it (runs its ``finally``)."""
 
-    __slots__ = ("gen", "name")
-
-    def __init__(self, gen: Generator[Any, None, Any], name: str) -> None:
-        self.gen = gen
-        self.name = name
+    gen: Generator[Any, None, Any]
+    name: str
 
     def tick(self) -> str:
         try:

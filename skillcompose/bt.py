@@ -22,6 +22,7 @@ instance.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -92,9 +93,9 @@ class BlackboardBridge:
                 )
             self.names[k] = name
         self.client = py_trees.blackboard.Client(name=f"skillcompose:{owner}")
-        for k in sorted(keys):
+        for k, name in self.names.items():
             access = TreeAccess.WRITE if k in self.to_tree else TreeAccess.READ
-            self.client.register_key(key=self.names[k], access=access)
+            self.client.register_key(key=name, access=access)
 
     def pull(self, bb: Blackboard) -> None:
         """Tree → ``bb`` for the ``from_tree`` keys the tree holds (typed keys stay checked)."""
@@ -358,26 +359,22 @@ TreeSource = py_trees.behaviour.Behaviour | Callable[[], py_trees.behaviour.Beha
 class TreeSkill(Skill):
     """A py_trees subtree as a skill: ``success`` / ``failure`` from its final status."""
 
-    __slots__ = ("_setup", "bridge", "factory", "tree")
+    __slots__ = ("_set_up", "bridge")
     long_running = True
 
     def __init__(
         self, spec: SkillSpec, source: TreeSource, bridge: BlackboardBridge
     ) -> None:
         super().__init__(spec, source, backend="default")
-        if isinstance(source, py_trees.behaviour.Behaviour):
-            self.tree: py_trees.behaviour.Behaviour | None = source
-            self.factory: Callable[[], py_trees.behaviour.Behaviour] | None = None
-        else:
-            self.tree, self.factory = None, source
         self.bridge = bridge
-        self._setup: set[int] = set()
+        self._set_up = False  # (a single tree, set up once)
 
     def starter(self, backend: str | None = None) -> Starter | None:
         return self._start
 
     def _start(self, bb: Blackboard, rng: np.random.Generator) -> _TreeActivation:
-        root = self.factory() if self.factory is not None else self.tree
+        single = isinstance(self.impl, py_trees.behaviour.Behaviour)  # else a factory
+        root = self.impl if single else self.impl()
         if not isinstance(root, py_trees.behaviour.Behaviour):
             raise SkillProtocolError(
                 f"skill {self.name}: its tree factory returned {root!r}, not a py_trees "
@@ -388,25 +385,20 @@ class TreeSkill(Skill):
                 f"skill {self.name}: its tree is running in another activation already; "
                 "register a factory (a function building the tree) instead of one tree"
             )
-        if id(root) not in self._setup:
+        if not (single and self._set_up):
             root.setup_with_descendants()
-            if self.factory is None:
-                self._setup.add(id(root))
+            self._set_up = single
         return _TreeActivation(self, root, bb)
 
 
 _OUTCOMES = {Status.RUNNING: RUNNING, Status.SUCCESS: "success", Status.FAILURE: "failure"}
 
 
+@dataclass(slots=True, eq=False)
 class _TreeActivation:
-    __slots__ = ("bb", "root", "skill")
-
-    def __init__(
-        self, skill: TreeSkill, root: py_trees.behaviour.Behaviour, bb: Blackboard
-    ) -> None:
-        self.skill = skill
-        self.root = root
-        self.bb = bb
+    skill: TreeSkill
+    root: py_trees.behaviour.Behaviour
+    bb: Blackboard
 
     def tick(self) -> str:
         bridge = self.skill.bridge

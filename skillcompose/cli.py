@@ -4,14 +4,12 @@ Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. Other p
 theirs (``evolve``, ``robustness``, ``robot``, ``view``) through a ``register_cli(subparsers)``
 function in the modules listed in :data:`SUBCOMMAND_MODULES`.
 
-Conventions every subcommand follows (those added by other packages too): ``-q``/``-v``
-are accepted before and after the subcommand with one meaning (see
-:func:`skillcompose.arguments.add_output_options`; :func:`build_parser` adds them to every
-subcommand); a command with a result document takes ``--json`` and then prints one JSON
-document on standard output and nothing else there. This module and each one named
-in :data:`SUBCOMMAND_MODULES` must import quickly: heavy packages (Pinocchio, CasADi,
-matplotlib, Ray) are imported by the command that needs them, not by ``register_cli``, so
-that ``skillcompose --help`` and ``skillcompose validate`` answer at once.
+Every subcommand, those added by other packages too, follows the conventions of
+:mod:`skillcompose.arguments` (``-q``/``-v``, which :func:`build_parser` adds to each, and
+``--json``). This module and each one named in :data:`SUBCOMMAND_MODULES` must import
+quickly: heavy packages (Pinocchio, CasADi, matplotlib, Ray) are imported by the command that
+needs them, not by ``register_cli``, so that ``skillcompose --help`` and ``skillcompose
+validate`` answer at once.
 """
 
 from __future__ import annotations

@@ -67,10 +67,9 @@ def _used_terminals(fsa: FSA) -> list[str]:
 
 def to_dot(fsa: FSA, *, params: bool = True, title: str | None = None) -> str:
     """The FSA in Graphviz DOT. Parallel edges to one target merge into one labelled edge."""
-    lines = [f"digraph {_q(fsa.name or 'fsa')} {{"]
-    lines.append("  rankdir=LR;")
-    lines.append('  node [shape=ellipse, fontname="Helvetica"];')
-    lines.append('  edge [fontname="Helvetica", fontsize=10];')
+    lines = [f"digraph {_q(fsa.name or 'fsa')} {{", "  rankdir=LR;",
+             '  node [shape=ellipse, fontname="Helvetica"];',
+             '  edge [fontname="Helvetica", fontsize=10];']
     label = title if title is not None else fsa.name
     if label:
         lines.append(f"  labelloc=t; label={_q(label)};")

@@ -466,21 +466,18 @@ class FSARun:
                 if j < 0:
                     self.steps = steps
                     self.ticks += steps + n
-                    c = self.compiled
-                    return self._finish(c._ends[-j - 1], steps, c.names[i])
+                    return self._finish(self.compiled._ends[-j - 1], i)
                 i = j
                 if not _to_the_end:
                     break
-        except Exception as exc:
+        except Exception as exc:  # (the finally below clears the blackboard's client)
             self._act = None
-            bb._client = None
             self.steps = steps
             self.ticks += steps + n
-            c = self.compiled
-            names = c.names
             if record is not None:
-                record(TraceStep(steps, names[i], c.skills[i], ERROR, ERROR, self._changes()))
-            self._finish(ERROR, steps, names[i], exc)
+                c = self.compiled
+                record(TraceStep(steps, c.names[i], c.skills[i], ERROR, ERROR, self._changes()))
+            self._finish(ERROR, i, exc)
             if self._propagate:
                 raise
             return ERROR
@@ -490,7 +487,7 @@ class FSARun:
         self.ticks += steps + n
         self._i = i
         if steps >= self._limit:
-            return self._finish(TIMEOUT, steps, self.compiled.names[i])
+            return self._finish(TIMEOUT, i)
         return RUNNING
 
     def _expire(self, act: Activation) -> Any:
@@ -528,7 +525,7 @@ class FSARun:
                     self.steps + 1, self.compiled.names[i], self.compiled.skills[i],
                     PREEMPTED, PREEMPTED, self._changes(),
                 ))
-        self._finish(PREEMPTED, self.steps, self.compiled.names[i], exc)
+        self._finish(PREEMPTED, i, exc)
         if exc is not None and self._propagate:
             raise exc
         return self.result
@@ -548,15 +545,14 @@ class FSARun:
         self._pending = {}
         return out
 
-    def _finish(
-        self, outcome: str, steps: int, last: str, exc: BaseException | None = None
-    ) -> str:
+    def _finish(self, outcome: str, i: int, exc: BaseException | None = None) -> str:
+        """End the run with ``outcome`` after ``self.steps`` steps, in state ``i``."""
         events = self._events
         trace = None
         if events is not None:
             trace = tuple(events)
             self.bb.stop_log()
-        self._result = _new(RunResult, (outcome, steps, last, trace, exc))
+        self._result = _new(RunResult, (outcome, self.steps, self.compiled.names[i], trace, exc))
         return outcome
 
     def __repr__(self) -> str:

@@ -45,6 +45,7 @@ import math
 import os
 import re
 from collections.abc import Collection, Mapping
+from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -57,6 +58,7 @@ from ruamel.yaml.events import (
     CollectionEndEvent,
     CollectionStartEvent,
     DocumentStartEvent,
+    MappingStartEvent,
     ScalarEvent,
     SequenceStartEvent,
 )
@@ -170,8 +172,9 @@ class _Refused(Exception):
 
 
 def _at(mark: Any, problem: Problem) -> Problem:
-    """``problem`` at the 1-based position of the parser's 0-based ``mark``."""
-    return dataclasses.replace(problem, line=mark.line + 1, column=mark.column + 1)
+    """``problem`` at the 1-based position of the parser's 0-based ``mark`` (1:1 if None)."""
+    line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+    return dataclasses.replace(problem, line=line, column=col)
 
 
 class _GuardedParser(RoundTripParser):
@@ -234,13 +237,12 @@ class _GuardedParser(RoundTripParser):
                     fix="remove the anchor and write each value out in full")))
                 event.anchor = None  # reported: the composer need not keep (or warn about) it
             tag = _tag_text(event.tag)
-            kind = ("scalar" if isinstance(event, ScalarEvent) else
-                    "seq" if isinstance(event, SequenceStartEvent) else "map")
-            if tag and tag != "!" and tag not in _EXPLICIT_TAGS[kind]:
-                allowed = ", ".join(sorted(_short_tag(t) for t in _EXPLICIT_TAGS[kind]))
+            kind, tags = _EXPLICIT_TAGS[type(event)]
+            if tag and tag != "!" and tag not in tags:
+                allowed = ", ".join(sorted(_short_tag(t) for t in tags))
                 self.problems.append(_at(mark, Problem(
                     f"YAML tag {tag!r} is not allowed here in FSA files (they are plain "
-                    f"data: no code, and on a {_KIND_NAMES[kind]} only {allowed})",
+                    f"data: no code, and on a {kind} only {allowed})",
                     fix=f"remove {_short_tag(tag)}")))
 
 
@@ -254,11 +256,11 @@ def _short_tag(tag: str) -> str:
     return "!!" + tag[len(_STD):] if tag.startswith(_STD) else tag
 
 
-_KIND_NAMES = {"scalar": "single value", "seq": "list", "map": "mapping"}
-_EXPLICIT_TAGS = {
-    "scalar": frozenset(_STD + t for t in ("str", "int", "float", "bool", "null")),
-    "seq": frozenset({_STD + "seq"}),
-    "map": frozenset({_STD + "map"}),
+_EXPLICIT_TAGS = {  # the tags allowed on each kind of node, and its name in messages
+    ScalarEvent: ("single value",
+                  frozenset(_STD + t for t in ("str", "int", "float", "bool", "null"))),
+    SequenceStartEvent: ("list", frozenset({_STD + "seq"})),
+    MappingStartEvent: ("mapping", frozenset({_STD + "map"})),
 }
 _INT_RE = re.compile(r"[-+]?(?:0b[01_]*[01][01_]*|0o[0-7_]*[0-7][0-7_]*"
                      r"|0x[0-9a-fA-F_]*[0-9a-fA-F][0-9a-fA-F_]*|[0-9_]*[0-9][0-9_]*)")
@@ -474,18 +476,13 @@ class _Reader:
         self.values[id(node)] = value
         return True
 
-    def scalar(self, node: Node) -> Any:
-        if not isinstance(node, ScalarNode):
-            return self.plain(node)
-        return self.values[id(node)]
-
     def plain(self, node: Node) -> Any:
         """The node as plain Python data (its depth is bounded by :data:`MAX_DEPTH`)."""
         if isinstance(node, MappingNode):
-            return {str(self.scalar(k)): self.plain(v) for k, v in node.value}
+            return {str(self.plain(k)): self.plain(v) for k, v in node.value}
         if isinstance(node, SequenceNode):
             return [self.plain(v) for v in node.value]
-        return self.scalar(node)
+        return self.values[id(node)]
 
     def mapping(
         self, node: Node, what: str, allowed: tuple[str, ...] | None, *,
@@ -497,7 +494,7 @@ class _Reader:
             return None
         out: dict[str, tuple[Node, Node]] = {}
         for k, v in node.value:  # plain, distinct keys: check_keys saw to that
-            key = str(self.scalar(k)) if k.value != "" else ""
+            key = str(self.plain(k)) if k.value != "" else ""
             if allowed is not None and key not in allowed:
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f"did you mean {close[0]!r}?" if close else \
@@ -508,15 +505,16 @@ class _Reader:
         return out
 
     def string(self, node: Node, what: str, *, state: str | None = None,
-               key: str | None = None, fix: str | None = None) -> str | None:
+               key: str | None = None, fix: str | None = None) -> str:
+        """The name ``node`` holds; "" (and a problem noted) when it holds no name."""
         if not isinstance(node, ScalarNode) or not str(node.tag).endswith(":str"):
             self.fail(node, f"{what} must be a name (text), got {_node_kind(node)}",
                       state=state, key=key, fix=fix)
-            return None
-        if not node.value:
+        elif not node.value:
             self.fail(node, f"{what} is empty", state=state, key=key, fix=fix)
-            return None
-        return str(node.value)
+        else:
+            return str(node.value)
+        return ""
 
     # -- the format ------------------------------------------------------------------------
     def read(self) -> FSA:
@@ -545,14 +543,11 @@ class _Reader:
         try:
             root = yaml.compose(self.text)
         except MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            line = mark.line + 1 if mark is not None else 1
-            col = mark.column + 1 if mark is not None else 1
             what = exc.problem or exc.context or "malformed YAML"
-            raise _Refused(Problem(
+            raise _Refused(_at(exc.problem_mark or exc.context_mark, Problem(
                 f"not valid YAML: {what}", fix="check indentation, colons and quotes near "
-                "this line", line=line, column=col,
-            )) from None
+                "this line",
+            ))) from None
         except ReaderError as exc:
             line, col = _line_col(self.text, exc.position)
             char = exc.character
@@ -564,12 +559,10 @@ class _Reader:
             )) from None
         except (YAMLError, RecursionError, ValueError, TypeError, LookupError,
                 AttributeError, AssertionError) as exc:  # the YAML library's own slips
-            mark = parser.last_mark
-            line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
-            raise _Refused(Problem(
+            raise _Refused(_at(parser.last_mark, Problem(
                 f"not valid YAML: {type(exc).__name__}: {clip(str(exc), 80)}",
-                fix="check the YAML near this line", line=line, column=col,
-            )) from None
+                fix="check the YAML near this line",
+            ))) from None
         self.problems.extend(parser.problems)
         return yaml, root
 
@@ -585,22 +578,20 @@ class _Reader:
                 self.fail(root, f"missing top-level key {req!r}", key=req, fix=f"add `{example}`")
         if "format" in top:
             fnode = top["format"][1]
-            fv = self.scalar(fnode)
+            fv = self.plain(fnode)
             if fv != FORMAT_VERSION or isinstance(fv, bool):
                 self.fail(fnode, f"format {fv!r} is not supported; this version of "
                           f"skillcompose reads format {FORMAT_VERSION}", key="format",
                           fix=f"set `format: {FORMAT_VERSION}`")
-        name = ""
-        if "name" in top:
-            name = self.string(top["name"][1], "name", key="name") or ""
+        name = self.string(top["name"][1], "name", key="name") if "name" in top else ""
         start = ""
         if "start" in top:
             start = self.string(top["start"][1], "start", key="start",
-                                fix="set `start:` to the name of the first state") or ""
+                                fix="set `start:` to the name of the first state")
         step_limit: Any = DEFAULT_STEP_LIMIT
         if "step_limit" in top:
             node = top["step_limit"][1]
-            step_limit = self.scalar(node)
+            step_limit = self.plain(node)
             if self.report(node, step_limit_problem(step_limit)):
                 step_limit = DEFAULT_STEP_LIMIT
         terminals: tuple[str, ...] = DEFAULT_TERMINALS
@@ -610,9 +601,8 @@ class _Reader:
                 self.fail(node, "terminals must be a list of outcome names",
                           key="terminals", fix="for example `terminals: [success, failure]`")
             else:
-                items = [self.string(v, "a terminal outcome", key="terminals")
-                         for v in node.value]
-                terminals = tuple(t for t in items if t)
+                terminals = tuple(self.string(v, "a terminal outcome", key="terminals")
+                                  for v in node.value)
         meta: dict[str, Any] = {}
         if "meta" in top:
             node = top["meta"][1]
@@ -620,9 +610,7 @@ class _Reader:
                 self.fail(node, "meta must be a mapping", key="meta")
             else:
                 meta = self.plain(node)
-        states: dict[str, State] = {}
-        if "states" in top:
-            states = self.read_states(*top["states"])
+        states = self.read_states(*top["states"]) if "states" in top else {}
         self.raise_if_problems()
         source = FileOrigin(self.path, dict(self.positions), self.text, root=root)
         try:
@@ -665,7 +653,7 @@ class _Reader:
         if "skill" in fields:
             self.mark(("states", sname, "skill"), fields["skill"][1])
             skill = self.string(fields["skill"][1], "skill", state=sname, key="skill",
-                                fix="write the skill's name, e.g. `skill: GraspObject`") or ""
+                                fix="write the skill's name, e.g. `skill: GraspObject`")
         params: dict[str, Any] = {}
         if "params" in fields:
             pnode = fields["params"][1]
@@ -679,9 +667,9 @@ class _Reader:
                 if isinstance(pv, SequenceNode) and all(
                     isinstance(item, ScalarNode) for item in pv.value
                 ):  # a vector parameter: one flat list of numbers
-                    params[pname] = tuple(self.scalar(item) for item in pv.value)
+                    params[pname] = tuple(self.plain(item) for item in pv.value)
                 elif isinstance(pv, ScalarNode):
-                    params[pname] = self.scalar(pv)
+                    params[pname] = self.plain(pv)
                 else:
                     self.fail(pv, f"parameter {pname!r} must be a single value (number, "
                               "true/false or text) or, for a vector parameter, a flat list "
@@ -695,12 +683,12 @@ class _Reader:
                 self.mark(("states", sname, "transitions", outcome), tv)
                 transitions[outcome] = self.string(
                     tv, f"the target of outcome {outcome!r}", state=sname, key=outcome,
-                    fix="write a state name or a terminal outcome such as success") or ""
+                    fix="write a state name or a terminal outcome such as success")
         time_limit: float | None = None
         if "time_limit" in fields:
             tnode = fields["time_limit"][1]
             self.mark(("states", sname, "time_limit"), tnode)
-            value = self.scalar(tnode)
+            value = self.plain(tnode)
             if not self.report(tnode, time_limit_problem(value, sname)):
                 time_limit = float(value)
         return State(skill, params, transitions, time_limit)
@@ -776,8 +764,11 @@ class FileOrigin(Source):
 
 
 def _dump(doc: Any) -> str:
+    yaml = YAML(typ="rt")
+    yaml.indent(mapping=2, sequence=4, offset=2)
+    yaml.width = 100
     buf = io.StringIO()
-    _yaml_out().dump(doc, buf)
+    yaml.dump(doc, buf)
     return buf.getvalue()
 
 
@@ -790,13 +781,6 @@ def save_fsa(
     text = dumps_fsa(fsa, registry, header=header)
     atomic_write(path, text.encode("utf-8"))
     return loads_fsa(text, str(Path(path)))
-
-
-def _yaml_out() -> YAML:
-    yaml = YAML(typ="rt")
-    yaml.indent(mapping=2, sequence=4, offset=2)
-    yaml.width = 100
-    return yaml
 
 
 def _py(value: Any) -> Any:
@@ -814,22 +798,16 @@ def _py(value: Any) -> Any:
     return value
 
 
-def _param_comment(registry: Registry | None, skill: str, pname: str) -> str | None:
-    try:
-        return None if registry is None else registry.spec(skill).param(pname).describe_range()
-    except (UnknownSkillError, ParamError):  # not the registry's: no comment
-        return None
-
-
 def _state_map(st: State, registry: Registry | None) -> CommentedMap:
     """A new state's mapping, its parameters' units and ranges and its time limit's unit as
     comments."""
     m = CommentedMap()
     _sync_state(m, st)
-    for k in st.params:
-        c = _param_comment(registry, st.skill, k)
-        if c:
-            m["params"].yaml_add_eol_comment(c, k)
+    if registry is not None:
+        for k in st.params:
+            with suppress(UnknownSkillError, ParamError):  # not the registry's: no comment
+                comment = registry.spec(st.skill).param(k).describe_range()
+                m["params"].yaml_add_eol_comment(comment, k)
     if st.time_limit is not None:
         m.yaml_add_eol_comment("s: a longer state ends with `timeout`", "time_limit")
     return m

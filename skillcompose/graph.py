@@ -38,7 +38,6 @@ def to_networkx(fsa: FSA) -> Any:
     return g
 
 
-def trap_states(fsa: FSA) -> list[str]:
-    """States reachable from the start from which no terminal outcome is reachable (the one
-    search of :meth:`FSA.trap_states <skillcompose.fsa.FSA.trap_states>`)."""
-    return fsa.trap_states()
+trap_states = FSA.trap_states
+"""States reachable from the start from which no terminal outcome is reachable: the model's
+one search (:meth:`FSA.trap_states <skillcompose.fsa.FSA.trap_states>`) as a function."""

@@ -7,6 +7,7 @@ registry it was registered in, so swapping a backend swaps it inside the nested 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -68,14 +69,12 @@ class FSASkill(Skill):
         return run_nested
 
 
+@dataclass(slots=True, eq=False)
 class _NestedActivation:
     """A nested FSA ticked state by state; cancelling it preempts the child run."""
 
-    __slots__ = ("run", "timeout_outcome")
-
-    def __init__(self, run: FSARun, timeout_outcome: str) -> None:
-        self.run = run
-        self.timeout_outcome = timeout_outcome
+    run: FSARun
+    timeout_outcome: str
 
     def tick(self) -> str:
         out = self.run.tick()

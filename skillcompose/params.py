@@ -139,7 +139,9 @@ class ParamSpec:
         assert n is not None and self.low is not None and self.high is not None
         head = f"{prefix}parameter {self.name!r} is not valid; expected {self.describe_range()}"
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
-            raise ParamError(f"{head}, got {_repr(value)}; write a list such as [0.1, -0.5, ...]")
+            raise ParamError(
+                f"{head}, got {clip(repr(value), 60)}; write a list such as [0.1, -0.5, ...]"
+            )
         if len(value) != n:
             raise ParamError(
                 f"{head}, got a list of {len(value)}; give exactly {n} numbers (the skill "
@@ -149,7 +151,7 @@ class ParamSpec:
         for i, v in enumerate(value):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or \
                     not math.isfinite(float(v)):
-                raise ParamError(f"{head}; item {i} = {_repr(v)} is not a finite number")
+                raise ParamError(f"{head}; item {i} = {clip(repr(v), 60)} is not a finite number")
             if not self.low <= v <= self.high:
                 raise ParamError(
                     f"{head}; item {i} = {v!r} is outside; set it between {self.low:g} and "
@@ -202,8 +204,7 @@ class ParamSpec:
         if self.kind == "bool":
             return 0.75 if value else 0.25
         if self.kind == "choice":
-            n = len(self.choices)
-            return (self.choices.index(value) + 0.5) / n
+            return (self.choices.index(value) + 0.5) / len(self.choices)
         if self.size is not None:
             raise ParamError(f"parameter {self.name!r} is a vector; use to_genes")
         return self._scalar_to_unit(value)
@@ -285,8 +286,13 @@ def make_param_spec(
                     f"`Annotated[tuple[float, ...], Param(low, high, size={decl.size})]`, "
                     f"got {base_type!r}"
                 )
+        if not decl.low <= decl.high:
+            raise ParamError(f"{where}: low {decl.low} is above high {decl.high}")
+        if decl.scale == "log" and decl.low <= 0:
+            raise ParamError(f"{where}: scale='log' needs a positive low bound, got {decl.low}")
+        if decl.scale not in ("linear", "log"):
+            raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
         whole = base_type is int or (base_type is None and isinstance(default, int))
-        _check_range(decl, where)
         spec = ParamSpec(
             name, "int" if whole and decl.size is None else "float", default,
             low=float(decl.low), high=float(decl.high), unit=decl.unit, scale=decl.scale,
@@ -301,19 +307,6 @@ def make_param_spec(
     if default is _MISSING:
         raise ParamError(f"{where}: needs a default value (evolution and files may omit it)")
     return dataclasses.replace(spec, default=spec.check(default, f"skill {owner}"))
-
-
-def _check_range(decl: Param, where: str) -> None:
-    if not decl.low <= decl.high:
-        raise ParamError(f"{where}: low {decl.low} is above high {decl.high}")
-    if decl.scale == "log" and decl.low <= 0:
-        raise ParamError(f"{where}: scale='log' needs a positive low bound, got {decl.low}")
-    if decl.scale not in ("linear", "log"):
-        raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
-
-
-def _repr(value: Any) -> str:
-    return clip(repr(value), 60)
 
 
 _MISSING: Any = object()  # the default of a parameter declared without one (None is a value)

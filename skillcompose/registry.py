@@ -177,13 +177,10 @@ class Registry:
         try:
             return self._impls[name]
         except KeyError:
-            raise UnknownSkillError(self.unknown_message(name)) from None
-
-    def unknown_message(self, name: str) -> str:
-        close = difflib.get_close_matches(name, list(self._impls), n=3)
-        hint = f"; did you mean {' or '.join(close)}?" if close else ""
-        known = ", ".join(sorted(self._impls)) or "none (load skills with --skills MODULE)"
-        return f"unknown skill {name!r}{hint} Known skills: {known}"
+            close = difflib.get_close_matches(name, list(self._impls), n=3)
+            hint = f"; did you mean {' or '.join(close)}?" if close else ""
+            known = ", ".join(sorted(self._impls)) or "none (load skills with --skills MODULE)"
+            raise UnknownSkillError(f"unknown skill {name!r}{hint} Known skills: {known}") from None
 
     def __repr__(self) -> str:
         return f"Registry({sorted(self._impls)}, backend={self.backend!r})"

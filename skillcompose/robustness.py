@@ -230,13 +230,11 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
 
 def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
     """Split ``reps`` so that the points times their chunks keep ``workers`` busy."""
-    import numpy as np
-
     if workers == 1:
         return [(0, reps)]
     per_point = max(1, min(reps // 500 or 1, math.ceil(4 * workers / points)))
-    bounds = np.linspace(0, reps, per_point + 1).round().astype(int)
-    return [(int(a), int(b)) for a, b in itertools.pairwise(bounds.tolist()) if b > a]
+    bounds = [k * reps // per_point for k in range(per_point + 1)]
+    return [(a, b) for a, b in itertools.pairwise(bounds) if b > a]
 
 
 def _build(ref: TaskRef, setting: str, value: float) -> Task:
@@ -289,22 +287,19 @@ def parse_values(text: str) -> list[float]:
             if len(parts) != 3 or len(parts[2].strip()) > 12:
                 raise ValueError(text)
             start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
-            if not 1 <= count <= MAX_SWEEP_POINTS:
-                raise RobustnessError(
-                    f"sweep {shown!r}: COUNT must be from 1 to {MAX_SWEEP_POINTS}; {forms}"
-                )
-            if not (math.isfinite(start) and math.isfinite(stop)):
+            if not (1 <= count <= MAX_SWEEP_POINTS and math.isfinite(start)
+                    and math.isfinite(stop)):
                 raise ValueError(text)
             if count == 1:
                 return [start]
             return [round(float(v), 12) for v in np.linspace(start, stop, count)]
         values = [float(p) for p in text.split(",", MAX_SWEEP_POINTS) if p.strip()]
+        if len(values) > MAX_SWEEP_POINTS or not all(math.isfinite(v) for v in values):
+            raise ValueError(text)
     except ValueError:
         raise RobustnessError(f"cannot read the sweep {shown!r}; {forms}") from None
     if not values:
         raise RobustnessError(f"the sweep {shown!r} has no values; {forms}")
-    if len(values) > MAX_SWEEP_POINTS or not all(math.isfinite(v) for v in values):
-        raise RobustnessError(f"cannot read the sweep {shown!r}; {forms}")
     return values
 
 

@@ -325,8 +325,9 @@ def _make_skill(
         func = obj.start
         outcome_source = tick
     elif is_class:
-        call = getattr(obj, "__call__", None)  # noqa: B004 - we want the class attribute
-        if call is None or call is object.__call__:
+        # the class's own __call__ (or a base's): getattr would find the metaclass's
+        call = next((vars(c)["__call__"] for c in obj.__mro__ if "__call__" in vars(c)), None)
+        if call is None:
             raise SkillDefinitionError(
                 f"class {obj.__name__} cannot be a skill: define "
                 "`def __call__(self, bb, rng, *, params...) -> Literal[...]`, or "
@@ -363,7 +364,7 @@ def _make_skill(
             )
         if p.kind is not p.KEYWORD_ONLY:
             continue
-        base, decl = _split_annotation(hints.get(p.name, inspect.Parameter.empty), p.default)
+        base, decl = _split_annotation(hints.get(p.name, inspect.Parameter.empty))
         default = _MISSING if p.default is p.empty else p.default
         if decl is None and base is inspect.Parameter.empty and isinstance(default, bool):
             base = bool
@@ -445,24 +446,18 @@ def _positional(func: Callable[..., Any]) -> list[inspect.Parameter]:
 
 def _annotations(func: Any) -> dict[str, Any]:
     """Evaluate a function's annotations, tolerating ``Param(...)`` used as an annotation."""
-    raw = dict(getattr(func, "__annotations__", {}) or {})
-    if not raw:
-        return {}
-    globalns = getattr(func, "__globals__", {})
     # fails e.g. on `x: Param(0, 1) = 0.5` under `from __future__ import annotations`
     with contextlib.suppress(Exception):
         return typing.get_type_hints(func, include_extras=True)
-    try:  # only parameters after `*` and the return type matter to a skill
-        sig = inspect.signature(func)
-        needed = {n for n, p in sig.parameters.items() if p.kind is p.KEYWORD_ONLY}
-    except (TypeError, ValueError):
-        needed = set(raw)
-    needed.add("return")
+    # only parameters after `*` and the return type matter to a skill (the caller has read
+    # the signature already)
+    needed = {n for n, p in inspect.signature(func).parameters.items()
+              if p.kind is p.KEYWORD_ONLY} | {"return"}
     out: dict[str, Any] = {}
-    for k, v in raw.items():
+    for k, v in (getattr(func, "__annotations__", None) or {}).items():
         if isinstance(v, str):
             try:
-                v = eval(v, dict(globalns), {})
+                v = eval(v, dict(getattr(func, "__globals__", {})), {})
             except Exception as exc:
                 if k not in needed:  # e.g. `bb: Blackboard` imported inside a function
                     continue
@@ -476,13 +471,11 @@ def _annotations(func: Any) -> dict[str, Any]:
     return out
 
 
-def _split_annotation(ann: Any, default: Any) -> tuple[Any, Param | Choice | None]:
+def _split_annotation(ann: Any) -> tuple[Any, Param | Choice | None]:
     """``Annotated[float, Param(...)]`` → (float, Param); ``Param(...)`` → (None, Param)."""
     if isinstance(ann, (Param, Choice)):
         return None, ann
     if get_origin(ann) is typing.Annotated:
-        args = get_args(ann)
-        base = args[0]
-        decl = next((a for a in args[1:] if isinstance(a, (Param, Choice))), None)
-        return base, decl
+        base, *extras = get_args(ann)
+        return base, next((a for a in extras if isinstance(a, (Param, Choice))), None)
     return ann, None

@@ -103,6 +103,29 @@ def test_quick_run_writes_its_report(tmp_path: Path) -> None:
     assert all("/2 |" in row for row in rows)
 
 
+def test_first_seed_moves_the_seeds_and_the_page_names_them(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    asked: list[int] = []
+
+    def run_one(bench: bench_search.Bench, config: str, seed: int, generations: int,
+                population: int | None) -> bench_search.RunResult:  # no evolution: seeds
+        asked.append(seed)
+        return bench_search.RunResult(bench.name, config, seed, True, 1, 1, 10, 0.1, 40,
+                                      [(0, 0.0, 5), (1, 1.0, 10)])
+
+    monkeypatch.setattr(bench_search, "run_one", run_one)
+    argv = ["--quick", "--workers", "1", "--only", "maze", "--first-seed", "100",
+            "--out", str(tmp_path)]
+    assert bench_search.main(argv) == 0
+    assert sorted(set(asked)) == [100, 101]
+    text = (tmp_path / "search.md").read_text(encoding="utf-8")
+    assert ", 2 seeds (100–101), budget 3 generations." in text
+    with pytest.raises(SystemExit):
+        bench_search.main(["--first-seed", "-1", "--out", str(tmp_path)])
+    assert "--first-seed -1: seeds are whole numbers >= 0" in capsys.readouterr().err
+
+
 def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     old = ("# Search\n\nCommand: `python benchmarks/bench_search.py `  \nMachine: old.\n\n"
            "## ant, Santa Fe trail\n\nold Santa Fe table\n\n"
@@ -145,14 +168,19 @@ def test_held_out_seeds_get_sections_of_their_own_beside_the_first() -> None:
         bench_search.main(["--config", "no such settings", "--quick", "--out", "unused"])
 
 
-def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: Path) -> None:
+def test_merge_from_takes_the_sections_the_other_run_measured(tmp_path: Path) -> None:
     mine = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only maze`  \n"
             "Machine: mine.\n\nThis run measured maze (wall following); the other ...\n\n"
             "## ant, Santa Fe trail\n\nold Santa Fe table\n\n"
-            f"## maze (wall following)\n\n{bench_search.RUN_MARK}of mine.\n\nmy maze table\n")
+            "## maze (wall following)\n\n"
+            f"{bench_search.RUN_MARK}of 1 (`python benchmarks/bench_search.py --only maze`)."
+            "\n\nmy maze table\n")
     other = ("# Search\n\nCommand: `python benchmarks/bench_search.py --only Santa`  \n"
-             "Machine: other.\n\n## ant, Santa Fe trail\n\n"
-             f"{bench_search.RUN_MARK}of theirs.\n\nnew Santa Fe table\n")
+             "Machine: other.\n\nThis run measured ...\n\n## ant, Santa Fe trail\n\n"
+             f"{bench_search.RUN_MARK}of 2 (`python benchmarks/bench_search.py --only Santa`)."
+             "\n\nnew Santa Fe table\n\n## maze (wall following)\n\n"
+             f"{bench_search.RUN_MARK}of 0 (`python benchmarks/bench_search.py `)."
+             "\n\nan older maze table\n")
     (tmp_path / "search.md").write_text(mine, encoding="utf-8")
     (tmp_path / "other.md").write_text(other, encoding="utf-8")
     assert bench_search.main(["--out", str(tmp_path), "--merge-from",
@@ -160,7 +188,7 @@ def test_merge_from_takes_another_pages_sections_and_measures_nothing(tmp_path: 
     text = (tmp_path / "search.md").read_text(encoding="utf-8")
     assert "Machine: mine." in text and "This run measured" not in text
     assert "new Santa Fe table" in text and "old Santa Fe table" not in text
-    assert f"{bench_search.RUN_MARK}of theirs." in text and "my maze table" in text
+    assert "my maze table" in text and "an older maze table" not in text  # kept there: not its
     assert [line for line in text.splitlines() if line.startswith("## ")] == [
         "## ant, Santa Fe trail", "## maze (wall following)"]
     with pytest.raises(SystemExit):
@@ -177,3 +205,25 @@ def test_the_deterministic_preset_solves_the_maze_the_same_way_twice() -> None:
     assert runs[0].solved and runs[0].best_fitness == 4.0
     assert [h.best for h in runs[0].history] == [h.best for h in runs[1].history]
     assert runs[0].evaluations == runs[1].evaluations
+
+
+def test_pour_water_targets_say_yes_only_when_every_one_is_met() -> None:
+    bench = next(b for b in bench_search.BENCHES if b.name.startswith("pour water"))
+
+    def runs(config: str, gens: list[int | None], fresh: float,
+             episodes: int) -> list[bench_search.RunResult]:
+        return [bench_search.RunResult(
+            bench=bench.name, config=config, seed=s, solved=g is not None, solved_at=g,
+            generations=g or 100, episodes=episodes, wall=1.0, population=600,
+            fresh_rate=fresh) for s, g in enumerate(gens)]
+
+    rows = [bench_search.summarise(bench, c, r, 100) for c, r in (
+        ("robust", runs("robust", [88] * 4, 0.97, 159_440)),
+        ("good", runs("good", [60, 70, 72, 80], 0.995, 130_000)),
+        ("one unsolved", runs("one unsolved", [60, 60, 60, None], 0.995, 100_000)))]
+    lines = [line for line in bench_search.targets(bench, rows, 100) if line.startswith("- ")]
+    assert lines[0].startswith("- robust: **no** — solved 4/4 (yes); median 88 generations, "
+                               "target ≤ 72 (no); median fresh rate 0.970, target ≥ 0.99 (no)")
+    assert lines[1].startswith("- good: **yes** — ")
+    assert "median 71 generations" in lines[1] and "target below 132,570 (yes)" in lines[1]
+    assert lines[2].startswith("- one unsolved: **no** — solved 3/4 (no)")

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from evolve import (
+    PRESETS,
     EvolutionConfig,
     EvolutionResult,
     Genome,
@@ -359,3 +360,57 @@ def test_confirm_rate_asks_a_share_of_fresh_worlds_instead_of_their_mean() -> No
 
     with pytest.raises(EvolutionConfigError, match=r"confirm_rate = 1\.5"):
         EvolutionConfig(confirm_rate=1.5)
+
+
+def test_confirm_feedback_confirms_each_genome_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On the same luck task, a genome that fails its confirmation stays the population's
+    best (it scores the target on its one trial seven times in ten) and is confirmed again
+    and again; with confirm_feedback it takes the failed confirmation's fitness (in the
+    population and the cache), so every confirmation is of another genome."""
+    from evolve import algorithm
+
+    toy = load_task("examples.toy_task", p_fail=0.0)
+
+    def lucky_world(rng: np.random.Generator) -> Blackboard:
+        bb = toy.setup(rng)
+        bb["luck"] = float(rng.random())
+        return bb
+
+    def luck(outcome: str, bb: Blackboard, steps: int) -> float:
+        return 0.0 if bb["luck"] < 0.7 else 1.0
+
+    task = dataclasses.replace(toy, setup=lucky_world, fitness=luck, ref=None)
+    confirmed: list[tuple[object, ...]] = []
+    confirm = algorithm._Run.confirm
+
+    def spy(run: algorithm._Run, fitness: list[float]) -> bool:
+        assert run.best is not None
+        confirmed.append(run.best[0].key())
+        return confirm(run, fitness)
+
+    monkeypatch.setattr(algorithm._Run, "confirm", spy)
+    cfg = EvolutionConfig(population=8, initial_nodes=3, generations=30, trials=1,
+                          elitism=1, cache=True, cache_refresh=1, confirm_trials=50,
+                          confirm_rate=0.9)
+    assert not evolve(task, cfg, seed=0, simplify_result=False).solved
+    assert len(set(confirmed)) < len(confirmed)  # the same genome confirmed again
+    confirmed.clear()
+    again = evolve(task, cfg.replace(confirm_feedback=True), seed=0, simplify_result=False)
+    assert not again.solved and again.generations == 30
+    assert len(confirmed) > 5 and len(set(confirmed)) == len(confirmed)
+
+
+def test_the_command_line_sets_confirm_feedback() -> None:
+    from evolve.cli import _config, build_parser
+
+    args = build_parser().parse_args(["evolve", "examples.toy_task", "--confirm", "100",
+                                      "--confirm-rate", "1", "--confirm-feedback"])
+    cfg = _config(args)
+    assert (cfg.confirm_trials, cfg.confirm_rate, cfg.confirm_feedback) == (100, 1.0, True)
+    assert not _config(build_parser().parse_args(["evolve", "examples.toy_task"])
+                       ).confirm_feedback
+    noisy = _config(build_parser().parse_args(["evolve", "examples.toy_task", "--preset",
+                                               "noisy"]))
+    assert noisy == EvolutionConfig(**PRESETS["noisy"])
+    assert (noisy.islands, noisy.cache_refresh, noisy.confirm_trials, noisy.confirm_rate,
+            noisy.confirm_feedback) == (4, 3, 100, 1.0, True)

@@ -180,3 +180,26 @@ def test_the_command_line_sets_islands_and_the_island_preset() -> None:
                                                 "islands"]))
     assert preset == EvolutionConfig(**PRESETS["islands"])
     assert PRESETS["paper"] == {}  # the paper's table 1, untouched
+
+
+@pytest.mark.slow
+def test_failed_confirmations_fed_back_are_the_same_run_anywhere_and_after_resume(
+        tmp_path: Path) -> None:
+    """Seed 1 fails its confirmation in generations 4, 5, 7, 8, 9 and 10 and is solved in
+    11: the feedback (population and cache) is the same on every backend and resumes."""
+    task = load_task("examples.toy_task", p_fail=0.3, tolerance=0.5)
+    cfg = EvolutionConfig(population=40, initial_nodes=8, generations=12, islands=2,
+                          elitism=1, trials=1, unique_children=True, cache=True,
+                          cache_refresh=1, confirm_trials=30, confirm_rate=1.0,
+                          confirm_feedback=True, checkpoint_every=2)
+    serial = evolve(task, cfg, seed=1, backend="serial", simplify_result=False,
+                    check_trials=0)
+    two = evolve(task, cfg, seed=1, backend="process", workers=2, simplify_result=False,
+                 check_trials=0)
+    assert serial.solved and serial.generations == 11
+    assert _run(serial) == _run(two)
+    short = evolve(task, cfg.replace(generations=6), seed=1, out_dir=tmp_path / "run",
+                   simplify_result=False, check_trials=0)
+    assert not short.solved and short.generations == 6
+    resumed = evolve(task, cfg, resume=tmp_path / "run")
+    assert _run(resumed) == _run(serial)

@@ -4,11 +4,13 @@ that would hide one (an import inside a function counts as an edge like any othe
 from __future__ import annotations
 
 import ast
+import importlib
 import subprocess
 import sys
 from pathlib import Path
 
 import networkx as nx
+import pytest
 
 import skillcompose
 
@@ -89,21 +91,33 @@ def test_the_graph_sees_function_level_imports() -> None:
     assert _imports(tree, "a", {"a", "b", "c"}) == {"b"}
 
 
-def test_the_lazy_name_table_equals_the_imports_the_type_checker_reads() -> None:
-    """``skillcompose/__init__.py`` lists its public names twice: as imports only the type
+@pytest.mark.parametrize(
+    "package", ["skillcompose", "evolve", pytest.param("robots", marks=pytest.mark.kinematics)]
+)
+def test_the_lazy_name_table_equals_the_imports_the_type_checker_reads(package: str) -> None:
+    """A package's ``__init__.py`` lists its public names twice: as imports only the type
     checker runs, and as the table that imports a name's module on first use."""
-    tree = ast.parse((PACKAGE / "__init__.py").read_text("utf-8"))
+    pkg = importlib.import_module(package)
+    tree = ast.parse(Path(str(pkg.__file__)).read_text("utf-8"))
     typed_names = {(str(a.asname), f".{node.module}") for node in ast.walk(tree)
                    if isinstance(node, ast.ImportFrom) and node.level == 1 for a in node.names}
-    assert typed_names == set(skillcompose._HOMES.items())
-    assert set(skillcompose.__all__) == set(skillcompose._HOMES) | {"__version__"}
-    for name in skillcompose.__all__:
-        assert getattr(skillcompose, name) is not None
+    table = {(name, f".{module}") for module, names in pkg._EXPORTS.items()
+             for name in names.split()}
+    assert typed_names == table
+    extra = {"__version__"} if package == "skillcompose" else set()
+    assert set(pkg.__all__) == {name for name, _ in table} | extra
+    for name in pkg.__all__:
+        assert getattr(pkg, name) is not None
 
 
 def test_a_public_name_is_not_replaced_by_the_submodule_of_the_same_name() -> None:
     code = ("import skillcompose, skillcompose.skill, skillcompose.registry;"
             "import types; print(isinstance(skillcompose.skill, types.FunctionType))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.strip() == "True"
+    code = ("import evolve, evolve.simplify, types;"
+            "print(isinstance(evolve.simplify, types.FunctionType))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
     assert done.stdout.strip() == "True"

@@ -77,6 +77,14 @@ def test_bad_declarations_are_named(source: str, message: str) -> None:
     assert "skill F" in str(info.value)  # the skill is named
 
 
+def test_a_class_without_call_or_start_says_what_to_define() -> None:
+    class Plain:
+        pass
+
+    with pytest.raises(SkillDefinitionError, match="class Plain cannot be a skill: define"):
+        skill(Plain)
+
+
 def test_reads_given_as_a_string_is_an_error() -> None:
     with pytest.raises(SkillDefinitionError, match=r"reads=\('jug',\)"):
         skill(reads="jug", name="Bad", outcomes=("success",))(lambda bb, rng: "success")  # type: ignore[arg-type]
