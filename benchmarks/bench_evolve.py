@@ -195,6 +195,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=15,
                     help="back-to-back serial/pool pairs for the throughput")
+    ap.add_argument("--trials", type=int, default=None,
+                    help="episodes per genome in the throughput rounds (default 3): more makes "
+                         "each round longer, and a backend's cost per round smaller beside it")
     ap.add_argument("--no-busy", action="store_true",
                     help="skip the rows measured beside a background CPU-bound process")
     ap.add_argument("--ray", action="store_true",
@@ -230,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     skills = SkillSet.from_task(task)
     rng = np.random.default_rng(0)
     population = 100 if quick else 300
-    trials = 2 if quick else 3
+    trials = args.trials or (2 if quick else 3)
     jobs = [Job.of(initialize(skills, rng, 12), 0, (1, 0, i), trials)
             for i in range(population)]
     episodes = population * trials
@@ -242,10 +245,10 @@ def main(argv: list[str] | None = None) -> int:
     conditions = [("idle", False)] + ([] if args.no_busy else [("busy", True)])
     for label, busy in conditions:
         evaluators: dict[str, Any] = {
-            f"process pool, {args.workers} workers": ProcessEvaluator(
+            f"process pool, {args.workers} workers (pinned)": ProcessEvaluator(
                 task, skills, workers=args.workers),
-            f"pool, {args.workers} pinned": ProcessEvaluator(
-                task, skills, workers=args.workers, pin=True),
+            f"pool, {args.workers} not pinned": ProcessEvaluator(
+                task, skills, workers=args.workers, pin=False),
             f"pool, {args.workers} pinned at nice 10 (old)": ProcessEvaluator(
                 task, skills, workers=args.workers, pin=True, nice=10),
         }
@@ -283,12 +286,14 @@ def main(argv: list[str] | None = None) -> int:
     whole_gens = 5 if quick else 25
     runs = 2 if quick else 5
     backends: dict[str, dict[str, Any]] = {"serial": {}, "pool": {},
+                                           "not pinned": {"pin": False},
                                            "old pool": {"pin": True, "nice": 10}}
     print(f"Whole runs, {whole_gens} generations from seed 1000 (no simplification), "
-          f"best of {runs} interleaved runs each; pool: {args.workers} workers, old pool: "
-          f"pinned at nice 10\n")
+          f"best of {runs} interleaved runs each; pool: {args.workers} workers (pinned, the "
+          "default), not pinned, and the old pool: pinned at nice 10\n")
     print(f"{'preset':8} {'machine':6} {'population x trials':>19} {'serial s':>9} "
-          f"{'pool s':>7} {'old pool s':>11} {'speed-up':>9} {'old':>6}")
+          f"{'pool s':>7} {'not pinned s':>13} {'old pool s':>11} {'speed-up':>9} "
+          f"{'not pinned':>11} {'old':>6}")
     for name in ("paper", "robust"):
         cfg = EvolutionConfig(**{**PRESETS[name], "generations": whole_gens})
         for label, busy in conditions:
@@ -308,10 +313,10 @@ def main(argv: list[str] | None = None) -> int:
                                               for h in r.history]
             if any(h != histories["serial"] for h in histories.values()):
                 raise SystemExit(f"preset {name}: a pool's run differs from the serial one")
-            s, p, o = (min(walls[b]) for b in backends)
+            s, p, u, o = (min(walls[b]) for b in backends)
             shape = f"{cfg.population} x {cfg.trials or task.trials}"
-            print(f"{name:8} {label:6} {shape:>19} {s:9.2f} {p:7.2f} {o:11.2f} "
-                  f"{s / p:8.2f}x {s / o:5.2f}x")
+            print(f"{name:8} {label:6} {shape:>19} {s:9.2f} {p:7.2f} {u:13.2f} {o:11.2f} "
+                  f"{s / p:8.2f}x {s / u:10.2f}x {s / o:5.2f}x")
     print()
 
     if args.no_solve:

@@ -617,7 +617,7 @@ class ProcessEvaluator:
 
     def __init__(
         self, task: Task, skills: SkillSet, workers: int | None = None,
-        limits: EvalLimits | None = None, pin: bool = False, nice: int = 0,
+        limits: EvalLimits | None = None, pin: bool = True, nice: int = 0,
     ) -> None:
         self.task = task
         self.workers = workers or os.cpu_count() or 1

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import os
 import time
 from pathlib import Path
 from typing import Any, Literal
@@ -213,6 +214,22 @@ def test_faults_are_recorded_per_generation_and_shown(tmp_path: Path) -> None:
     info = json.loads((tmp_path / "s" / "run.json").read_text())["result"]
     assert info["faults"]["raised"] == sum(raised)
     assert "ValueError" in info["first_error"]
+
+
+def test_pool_workers_are_pinned_a_core_each_by_default() -> None:
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        pytest.skip("pinning shows with two cores or more")
+    task = load_task(FAULTY)
+    jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"])
+    expected = SerialEvaluator(task, SkillSet.from_task(task)).evaluate(jobs)
+    for options, placed in (({}, [{cpus[0]}, {cpus[1]}]), ({"pin": False}, [set(cpus)] * 2)):
+        ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=2, **options)
+        try:
+            assert ev.evaluate(jobs) == expected
+            assert [os.sched_getaffinity(w.process.pid) for w in ev._pool] == placed
+        finally:
+            ev.close()
 
 
 def test_dead_workers_are_counted_as_lost_jobs() -> None:
