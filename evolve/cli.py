@@ -197,6 +197,12 @@ _SETTING_OPTIONS = (
     ("worker_max_jobs", "worker_max_jobs"),
     ("worker_max_growth_mb", "worker_max_growth_mb"),
 )
+_SWITCHES = (
+    ("crn", "common_random_numbers"), ("cache", "cache"), ("parsimony", "parsimony"),
+    ("unique_children", "unique_children"), ("confirm_feedback", "confirm_feedback"),
+    ("neutral", "neutral"),
+)
+"""The on/off options: (argparse name, setting); given, they turn the setting on."""
 
 
 def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
@@ -208,18 +214,7 @@ def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
             changes[name] = v
     if args.eval_time_limit is not None:
         changes["eval_time_limit"] = args.eval_time_limit or None
-    if args.crn:
-        changes["common_random_numbers"] = True
-    if args.cache:
-        changes["cache"] = True
-    if args.parsimony:
-        changes["parsimony"] = True
-    if args.unique_children:
-        changes["unique_children"] = True
-    if args.confirm_feedback:
-        changes["confirm_feedback"] = True
-    if args.neutral:
-        changes["neutral"] = True
+    changes.update((name, True) for opt, name in _SWITCHES if getattr(args, opt))
     return changes
 
 
@@ -257,11 +252,8 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         differs("--check-trials", args.check_trials, record["check_trials"])
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
-    flags = {name: opt for opt, name in _SETTING_OPTIONS}
-    flags.update(common_random_numbers="crn", cache="cache", parsimony="parsimony",
-                 unique_children="unique_children", confirm_feedback="confirm_feedback",
-                 neutral="neutral",
-                 eval_time_limit="eval_time_limit")
+    flags = {name: opt for opt, name in (*_SETTING_OPTIONS, *_SWITCHES)}
+    flags["eval_time_limit"] = "eval_time_limit"
     for name, value in _given_settings(args).items():
         if name in FREE_SETTINGS:
             continue

@@ -29,7 +29,7 @@ from evolve import (
     initialize,
 )
 from skillcompose import Blackboard, compile_fsa, load_fsa
-from skillcompose.task import load_task
+from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
 SMALL = EvolutionConfig(population=60, initial_nodes=15, generations=60, checkpoint_every=4)
@@ -331,9 +331,9 @@ def test_confirmation_rejects_lucky_solutions() -> None:
     assert solved_rate(confirmed.best_fsa) > solved_rate(lucky.best_fsa)
 
 
-def test_confirm_rate_asks_a_share_of_fresh_worlds_instead_of_their_mean() -> None:
-    """A task where each episode reaches the target with probability 0.7 whatever the FSA:
-    its mean over fresh worlds never reaches 0, the share reaching it is about 0.7."""
+def _luck_task() -> Task:
+    """The toy task where each episode reaches the target (fitness 0) with probability 0.7,
+    whatever the FSA: its mean over fresh worlds never reaches 0."""
     toy = load_task("examples.toy_task", p_fail=0.0)
 
     def lucky_world(rng: np.random.Generator) -> Blackboard:
@@ -344,7 +344,13 @@ def test_confirm_rate_asks_a_share_of_fresh_worlds_instead_of_their_mean() -> No
     def luck(outcome: str, bb: Blackboard, steps: int) -> float:
         return 0.0 if bb["luck"] < 0.7 else 1.0
 
-    task = dataclasses.replace(toy, setup=lucky_world, fitness=luck, ref=None)
+    return dataclasses.replace(toy, setup=lucky_world, fitness=luck, ref=None)
+
+
+def test_confirm_rate_asks_a_share_of_fresh_worlds_instead_of_their_mean() -> None:
+    """A task where each episode reaches the target with probability 0.7 whatever the FSA:
+    its mean over fresh worlds never reaches 0, the share reaching it is about 0.7."""
+    task = _luck_task()
     cfg = EvolutionConfig(population=8, initial_nodes=3, generations=6, trials=1,
                           confirm_trials=200)
     by_mean = evolve(task, cfg, seed=0, simplify_result=False)
@@ -369,17 +375,7 @@ def test_confirm_feedback_confirms_each_genome_once(monkeypatch: pytest.MonkeyPa
     population and the cache), so every confirmation is of another genome."""
     from evolve import algorithm
 
-    toy = load_task("examples.toy_task", p_fail=0.0)
-
-    def lucky_world(rng: np.random.Generator) -> Blackboard:
-        bb = toy.setup(rng)
-        bb["luck"] = float(rng.random())
-        return bb
-
-    def luck(outcome: str, bb: Blackboard, steps: int) -> float:
-        return 0.0 if bb["luck"] < 0.7 else 1.0
-
-    task = dataclasses.replace(toy, setup=lucky_world, fitness=luck, ref=None)
+    task = _luck_task()
     confirmed: list[tuple[object, ...]] = []
     confirm = algorithm._Run.confirm
 
