@@ -186,7 +186,6 @@ class _Run:
         self.generation = 0
         self.population: list[Genome] = []
         self.best: tuple[Genome, float, int] | None = None  # genome, fitness, generation
-        self.best_index = 0  # where the best was found in its generation's population
         self.history: list[GenerationRecord] = []
         self.cache: dict[tuple[Any, ...], tuple[float, int]] = {}
         self.evaluations = 0
@@ -517,7 +516,6 @@ class _Run:
         )
         if improved:
             self.best = (self.population[bi].copy(), bf, self.generation)
-            self.best_index = bi
         self.evaluations += episodes
         finite = [f for f in fitness if math.isfinite(f)] or [math.inf]
         rec = GenerationRecord(
@@ -551,7 +549,7 @@ class _Run:
         of its evaluation's and its confirmation's episodes, wherever it is in the
         population."""
         assert self.best is not None
-        g, _, gen = self.best
+        g, evaluated, gen = self.best
         trials = 1 if self.task.deterministic else self.cfg.confirm_trials
         # By share: the same worlds for every confirmation of the run, so that an FSA (or a
         # neutral variant of it) re-confirmed generation after generation cannot pass by
@@ -570,18 +568,19 @@ class _Run:
             return True
         self.best = (g, mean, gen)
         if self.cfg.confirm_feedback:
-            self.demote(g, fitness, mean, trials)
+            self.demote(g, fitness, evaluated, mean, trials)
         return False
 
-    def demote(self, g: Genome, fitness: list[float], mean: float, trials: int) -> None:
-        """Fold a failed confirmation into the fitness of ``g`` (every copy of it in the
-        population) and into the cache."""
+    def demote(self, g: Genome, fitness: list[float], evaluated: float, mean: float,
+               trials: int) -> None:
+        """Fold a failed confirmation (``mean`` over ``trials``) into the fitness of ``g``
+        (every copy of it in the population; ``evaluated`` is the fitness its evaluation
+        gave it) and into the cache."""
         key = g.key()
-        f = fitness[self.best_index]
         if self.cfg.cache and key in self.cache:
             total, count = self.cache[key]
         else:
-            total, count = f * self.trials, self.trials
+            total, count = evaluated * self.trials, self.trials
         if math.isinf(total) or math.isinf(mean):  # as evaluate() folds a worst score
             total, count = mean, 1
         else:
