@@ -870,6 +870,9 @@ class ProcessEvaluator:
         for w in self._pool:
             self._discard(w)
         self._pool = []
+        # a worker stopped while claiming a chunk holds the counter's lock for good: the
+        # workers spawned next share a fresh counter
+        self._counter = self._ctx.Value("q", 0)
 
     def close(self) -> None:
         for w in self._pool:

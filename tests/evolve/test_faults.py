@@ -232,6 +232,48 @@ def test_pool_workers_are_pinned_a_core_each_by_default() -> None:
             ev.close()
 
 
+def test_an_interrupted_batch_leaves_no_lock_held(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Workers stopped by an interrupt may be claiming a chunk, under the shared counter's
+    lock: the pool that follows must not wait on that lock for ever."""
+    import multiprocessing
+
+    import evolve.evaluation as evaluation
+
+    task = load_task(FAULTY)
+    jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"])
+    expected = SerialEvaluator(task, SkillSet.from_task(task)).evaluate(jobs)
+    ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=1)
+    ctx = multiprocessing.get_context("fork")
+
+    def hold(lock: Any, held: Any) -> None:
+        lock.acquire()
+        held.set()
+        time.sleep(60)
+
+    def interrupted(*args: object, **kwargs: object) -> object:
+        # as a worker killed half-way through claiming a chunk leaves it: the lock held
+        held = ctx.Event()
+        holder = ctx.Process(target=hold, args=(ev._counter.get_lock(), held), daemon=True)
+        holder.start()
+        held.wait(10)
+        holder.kill()
+        holder.join()
+        raise KeyboardInterrupt
+
+    try:
+        assert ev.evaluate(jobs) == expected
+        monkeypatch.setattr(evaluation, "wait", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            ev.evaluate(jobs)
+        monkeypatch.undo()
+        lock = ev._counter.get_lock()
+        assert lock.acquire(timeout=2)
+        lock.release()
+        assert ev.evaluate(jobs) == expected
+    finally:
+        ev.close()
+
+
 def test_dead_workers_are_counted_as_lost_jobs() -> None:
     task = load_task("tests.evolve.crashy_task", p_fail=0.0)
     result = evolve(task, SMALL, seed=0, backend="process", workers=2, simplify_result=False,
