@@ -136,7 +136,7 @@ class EvolutionConfig:
     neutral: bool = False
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
-    chunks_per_worker: int = 4
+    chunks_per_worker: int = 2
     eval_time_limit: float | None = 60.0
     worker_max_jobs: int = 0
     worker_max_growth_mb: float = 1024.0
