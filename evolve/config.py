@@ -266,10 +266,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         **_ISLANDS,
         "cache": True,
         "cache_refresh": 3,
-        "p_param": 0.3,
-        "restart_after": 30,
         "confirm_trials": 100,
-        "confirm_rate": 0.99,
+        "confirm_rate": 1.0,
         "confirm_feedback": True,
     },
     "deterministic": {
@@ -309,14 +307,10 @@ fresh episodes.
 
 ``noisy`` is for noisy tasks where a solution must hold on nearly every episode, chosen on
 the pour-water task (see docs/results/search.md): the island preset, with the cache keeping
-every trial a genome has had (3 more each time it reappears, folded into its mean), the
-parameter mutation applied to each node of every child with probability 0.3 (``p_param``:
-finding a point in a small window is mostly the work of parameter noise), an island whose
-best has not improved for 30 generations started afresh around it (the search falls into
-deceptive optima, such as the spout held over the glass without a tilt), and a solution
-confirmed on 100 fresh worlds, the same for the whole run, at least 99 of which it must
-solve; a genome that fails its confirmation takes that fitness in the population, so the
-next candidate is confirmed.
+every trial a genome has had (3 more each time it reappears, folded into its mean), and a
+solution confirmed on 100 fresh worlds, the same for the whole run, every one of which it
+must solve; a genome that fails its confirmation takes that fitness in the population, so
+the next candidate is confirmed.
 
 ``deterministic`` is for tasks whose fitness never changes from one episode to the next
 (``Task.deterministic``: the classic FSA benchmarks in ``benchmarks/``, chosen there with

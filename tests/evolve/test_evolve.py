@@ -408,6 +408,5 @@ def test_the_command_line_sets_confirm_feedback() -> None:
     noisy = _config(build_parser().parse_args(["evolve", "examples.toy_task", "--preset",
                                                "noisy"]))
     assert noisy == EvolutionConfig(**PRESETS["noisy"])
-    assert (noisy.islands, noisy.cache_refresh, noisy.p_param, noisy.restart_after,
-            noisy.confirm_trials, noisy.confirm_rate, noisy.confirm_feedback) == (
-        4, 3, 0.3, 30, 100, 0.99, True)
+    assert (noisy.islands, noisy.cache_refresh, noisy.confirm_trials, noisy.confirm_rate,
+            noisy.confirm_feedback) == (4, 3, 100, 1.0, True)
