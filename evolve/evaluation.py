@@ -961,8 +961,9 @@ class RayEvaluator:
     """Ray actors, each holding the task built once from its module and settings.
 
     Needs the optional extra: ``pip install skillcompose[ray]``. Connects to the cluster at
-    ``RAY_ADDRESS`` when it is set, else starts a local one, and ships the task's code to
-    the workers through Ray's runtime environment (:func:`ray_runtime_env`; pass
+    ``RAY_ADDRESS`` when it is set, else starts a local one (without a dashboard; its
+    servers listen on every interface, which Ray offers no setting to change), and ships
+    the task's code to the workers through Ray's runtime environment (:func:`ray_runtime_env`; pass
     ``runtime_env`` to give your own), and disconnects on :meth:`close`. When Ray is
     already initialised, the caller's connection and runtime environment stand.
 
@@ -1001,7 +1002,7 @@ class RayEvaluator:
         self._ray: Any = ray
         self._owns_ray = not ray.is_initialized()  # then closed with this evaluator
         if self._owns_ray:
-            ray.init(ignore_reinit_error=True, log_to_driver=False,
+            ray.init(ignore_reinit_error=True, log_to_driver=False, include_dashboard=False,
                      runtime_env=env if runtime_env is None else runtime_env)
         self.task = task
         self.workers = workers or int(ray.cluster_resources().get("CPU", 1)) or 1

@@ -340,6 +340,7 @@ def test_leaking_workers_are_replaced_and_results_do_not_change() -> None:
 
 # -- item 18 (and 14 on Ray): a dead or stuck actor costs only its own job ---------------------
 @pytest.mark.slow
+@pytest.mark.private_network  # starts Ray, which listens: see tests/conftest.py
 def test_ray_reruns_a_dead_actors_chunk_job_by_job() -> None:
     ray = pytest.importorskip("ray")
     from evolve.evaluation import RayEvaluator
@@ -393,6 +394,7 @@ def test_simplification_and_the_fresh_check_survive_sys_exit() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.private_network  # starts Ray, which listens: see tests/conftest.py
 def test_faults_on_ray_equal_the_serial_run() -> None:
     ray = pytest.importorskip("ray")
     task = load_task(FAULTY, fault="raise", p_fault=0.5)

@@ -7,7 +7,7 @@ import pytest
 from evolve import EvolutionConfig, evolve
 from skillcompose.task import load_task
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.private_network]  # Ray listens: see conftest
 
 
 def test_ray_backend_equals_serial() -> None:
@@ -24,3 +24,11 @@ def test_ray_backend_equals_serial() -> None:
     assert [(r.best, r.mean, r.median, r.best_size) for r in serial.history] == \
         [(r.best, r.mean, r.median, r.best_size) for r in on_ray.history]
     assert serial.best_fsa == on_ray.best_fsa
+
+
+def test_the_ray_tests_run_where_nothing_can_reach_them() -> None:
+    """The ``private_network`` marker (tests/conftest.py) runs a test where loopback is the
+    only interface: what a local Ray listens on there serves this machine alone."""
+    import socket
+
+    assert [name for _, name in socket.if_nameindex()] == ["lo"]
