@@ -1125,8 +1125,14 @@ class RayEvaluator:
                     return start, jobs[start:spans[k][0]], False
             return None
 
+        tail = max(1, n // (8 * self.chunks_per_worker * max(1, len(self._actors))))
+
         def feed(actor: _Actor) -> None:
-            while not actor.retiring and len(actor.calls) < 2:
+            # a second call waits behind the running one (hiding the round trip) only while
+            # more than a chunk per actor is left: at the end of a generation a queued chunk
+            # would keep its actor busy while another, free, has nothing to take
+            while not actor.retiring and len(actor.calls) < (
+                    2 if sum(e - s for s, e in spans) > tail * len(self._actors) else 1):
                 work = next_work(actor)
                 if work is None:
                     return
