@@ -159,7 +159,6 @@ def _pool_options(**options: Any) -> Iterator[None]:
         yield
 
 
-PRIVATE_NET = ["unshare", "--net", "sh", "-c", 'ip link set lo up && exec "$@"', "sh"]
 _IN_PRIVATE_NET = "SKILLCOMPOSE_BENCH_PRIVATE_NET"
 
 
@@ -211,12 +210,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.ray and not os.environ.get(_IN_PRIVATE_NET):
         # the cluster listens on ports: run in a network namespace of our own (loopback
         # only), so nothing of it can be reached from elsewhere
-        import shutil
         import subprocess
         import sys
 
-        if shutil.which("unshare") is None or subprocess.run(
-                [*PRIVATE_NET, "true"], capture_output=True, check=False).returncode:
+        from evolve.ray_local import PRIVATE_NET, private_network
+
+        if not private_network():
             raise SystemExit("bench_evolve.py --ray: needs a private network namespace "
                              "(unshare --net, run as root); run without --ray")
         argv = sys.argv[1:] if argv is None else argv

@@ -16,18 +16,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # only; ``unshare --net``, as root): nothing it listens on can be reached from elsewhere.
 # Without such a namespace the test is skipped, never run in the open.
 
-PRIVATE_NET = ["unshare", "--net", "sh", "-c", 'ip link set lo up && exec "$@"', "sh"]
 _INSIDE = "SKILLCOMPOSE_TEST_PRIVATE_NET"
-
-
-def _private_network() -> bool:
-    import shutil
-    import subprocess
-
-    if shutil.which("unshare") is None or shutil.which("ip") is None:
-        return False
-    return subprocess.run([*PRIVATE_NET, "true"], capture_output=True,
-                          check=False).returncode == 0
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -37,7 +26,9 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     import subprocess
     import sys
 
-    if not _private_network():
+    from evolve.ray_local import PRIVATE_NET, private_network
+
+    if not private_network():
         pytest.skip("starts Ray, which listens on every interface: needs a private network "
                     "namespace (unshare --net, as root)")
     root = str(pyfuncitem.config.rootpath)

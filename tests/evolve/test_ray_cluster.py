@@ -6,31 +6,24 @@ project reach the workers through Ray's runtime environment alone."""
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from evolve.ray_local import PRIVATE_NET, private_network
+
 pytestmark = [pytest.mark.slow, pytest.mark.ray]
 
 DRIVER = Path(__file__).with_name("ray_cluster_driver.py")
-PRIVATE_NET = ["unshare", "--net", "sh", "-c", 'ip link set lo up && exec "$@"', "sh"]
-
-
-def _private_network() -> bool:
-    if shutil.which("unshare") is None or shutil.which("ip") is None:
-        return False
-    done = subprocess.run([*PRIVATE_NET, "true"], capture_output=True, check=False)
-    return done.returncode == 0
 
 
 def test_two_nodes_ship_the_code_share_the_work_and_survive_a_lost_node(
     tmp_path: Path,
 ) -> None:
     pytest.importorskip("ray")
-    if not _private_network():
+    if not private_network():
         pytest.skip("needs a private network namespace (unshare --net, as root)")
     from evolve.ray_local import _tagged
 
