@@ -963,8 +963,9 @@ class RayEvaluator:
     Needs the optional extra: ``pip install skillcompose[ray]``. Connects to the cluster at
     ``RAY_ADDRESS`` when it is set, else starts a local one (without a dashboard; its
     servers listen on every interface, which Ray offers no setting to change), and ships
-    the task's code to the workers through Ray's runtime environment (:func:`ray_runtime_env`; pass
-    ``runtime_env`` to give your own), and disconnects on :meth:`close`. When Ray is
+    the task's code to the workers through Ray's runtime environment
+    (:func:`ray_runtime_env`; pass ``runtime_env`` to give your own), and disconnects on
+    :meth:`close`. When Ray is
     already initialised, the caller's connection and runtime environment stand.
 
     Each actor takes one CPU of the cluster (``workers``: by default every CPU), spread
