@@ -975,8 +975,9 @@ class RayEvaluator:
 
     Each actor takes one CPU of the cluster (``workers``: by default every CPU), spread
     over the nodes. Jobs go out in guided chunks (each a ``1 / chunks_per_worker`` share of
-    what is left, so large first and small last) to whichever actor is free, each actor
-    holding at most two, so a slow or busy node simply does less.
+    what is left, so large first and small last, but none under ``_MIN_CHUNK_S`` of work
+    once a generation has timed the jobs) to whichever actor is free, each actor holding at
+    most two (one near the end), so a slow or busy node simply does less.
     ``nodes`` gives, for the last call, the node each job was evaluated on. With ``groups``
     set to k > 1 (islands: the population in k equal runs), group i's jobs go to the actors
     of the i-th node (mod the number of nodes) first, and to others only when those have
