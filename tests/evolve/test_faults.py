@@ -223,8 +223,10 @@ def test_pool_workers_are_pinned_a_core_each_by_default() -> None:
     task = load_task(FAULTY)
     jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"])
     expected = SerialEvaluator(task, SkillSet.from_task(task)).evaluate(jobs)
-    for options, placed in (({}, [{cpus[0]}, {cpus[1]}]), ({"pin": False}, [set(cpus)] * 2)):
-        ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=2, **options)
+    for pin, placed in ((None, [{cpus[0]}, {cpus[1]}]), (False, [set(cpus)] * 2)):
+        skills = SkillSet.from_task(task)
+        ev = ProcessEvaluator(task, skills, workers=2) if pin is None else \
+            ProcessEvaluator(task, skills, workers=2, pin=pin)  # None: the default
         try:
             assert ev.evaluate(jobs) == expected
             assert [os.sched_getaffinity(w.process.pid) for w in ev._pool] == placed
