@@ -141,6 +141,14 @@ def _nan_safe(f: float, minimize: bool) -> float:
     return (math.inf if minimize else -math.inf) if math.isnan(f) else f
 
 
+def _fold(total: float, count: int, mean: float, trials: int) -> tuple[float, int]:
+    """A genome's running (total, episodes) with ``trials`` more episodes of ``mean``
+    fitness; a worst (infinite) score on either side stands alone."""
+    if math.isinf(mean) or math.isinf(total):
+        return mean, 1
+    return total + mean * trials, count + trials
+
+
 def _tuples(data: Any) -> Any:
     """JSON lists back to the tuples a genome's code and key are made of; only numbers."""
     if isinstance(data, list):
@@ -344,11 +352,7 @@ class _Run:
             if cfg.cache:
                 key = keys[idx[0]]
                 assert key is not None
-                total, count = self.cache.get(key, (0.0, 0))
-                if math.isinf(f) or math.isinf(total):
-                    total, count = f, 1
-                else:
-                    total, count = total + f * job.trials, count + job.trials
+                total, count = _fold(*self.cache.get(key, (0.0, 0)), f, job.trials)
                 self.cache[key] = (total, count)
                 f = total / count
             for i in idx:
@@ -581,10 +585,7 @@ class _Run:
             total, count = self.cache[key]
         else:
             total, count = evaluated * self.trials, self.trials
-        if math.isinf(total) or math.isinf(mean):  # as evaluate() folds a worst score
-            total, count = mean, 1
-        else:
-            total, count = total + mean * trials, count + trials
+        total, count = _fold(total, count, mean, trials)
         if self.cfg.cache:
             self.cache[key] = (total, count)
         for i, ind in enumerate(self.population):

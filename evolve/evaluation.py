@@ -462,6 +462,10 @@ def _pack(jobs: Sequence[Job]) -> bytes:
     return pickle.dumps([tuple(j) for j in jobs], protocol=pickle.HIGHEST_PROTOCOL)
 
 
+def _unpack(packed: bytes) -> list[Job]:
+    return [Job._make(j) for j in pickle.loads(packed)]
+
+
 class _Shared(NamedTuple):
     """Shared memory of a pool: per job position its fitness and fault code; per worker
     slot the position of the job it runs (-1: none) and when that job started
@@ -480,11 +484,11 @@ def _run_packed(
     """Run a chunk, writing each fitness and fault code as soon as it is known; note the
     first exception (``first``: empty until one is found). Returns the chunk's length."""
     results, codes, running, since = shared
-    jobs = pickle.loads(payload)
+    jobs = _unpack(payload)
     for i, job in enumerate(jobs):
         since[slot] = time.monotonic()
         running[slot] = at + i
-        f, code, error = evaluate_job(task, compiler, Job._make(job), guard, not first)
+        f, code, error = evaluate_job(task, compiler, job, guard, not first)
         results[at + i] = f
         codes[at + i] = code
         running[slot] = -1
@@ -970,8 +974,8 @@ class RayEvaluator:
     servers listen on every interface, which Ray offers no setting to change), and ships
     the task's code to the workers through Ray's runtime environment
     (:func:`ray_runtime_env`; pass ``runtime_env`` to give your own), and disconnects on
-    :meth:`close`. When Ray is
-    already initialised, the caller's connection and runtime environment stand.
+    :meth:`close`. When Ray is already initialised, the caller's connection and runtime
+    environment stand.
 
     Each actor takes one CPU of the cluster (``workers``: by default every CPU), spread
     over the nodes. Jobs go out in guided chunks (each a ``1 / chunks_per_worker`` share of
@@ -1127,22 +1131,21 @@ class RayEvaluator:
                     workers = sum(a.node == home[k] for a in self._actors) if home[k] else \
                         len(self._actors)
                     share = self.chunks_per_worker * max(1, workers)
-                    size = max(least(end - k * n // groups, workers),
+                    size = max(least(end - k * n // groups, share),
                                math.ceil((end - start) / share))
                     spans[k][0] = min(end, start + size)
                     return start, jobs[start:spans[k][0]], False
             return None
 
-        def least(jobs_in: int, workers: int) -> int:
-            """The smallest chunk of a run of ``jobs_in`` jobs shared by ``workers``: an
+        def least(jobs_in: int, share: int) -> int:
+            """The smallest chunk of a run of ``jobs_in`` jobs cut in ``share`` shares: an
             eighth of a share, and (once a generation has timed the jobs) at least
             ``_MIN_CHUNK_S`` of work, but never more than the first chunk."""
-            share = self.chunks_per_worker * max(1, workers)
             timed = 1 if self._job_s is None else math.ceil(_MIN_CHUNK_S / self._job_s)
             return max(1, min(max(jobs_in // (8 * share), timed),
                               math.ceil(jobs_in / share)))
 
-        tail = least(n, len(self._actors))
+        tail = least(n, self.chunks_per_worker * max(1, len(self._actors)))
         busy = [0.0, 0]  # seconds the actors spent on jobs, and jobs, this generation
 
         def feed(actor: _Actor) -> None:
@@ -1280,7 +1283,7 @@ class _RayWorker:
         bytes argument: Ray passes it as it is, at a fraction of the cost of serialising
         the jobs' nested tuples itself)."""
         t0 = time.perf_counter()
-        jobs = [Job._make(j) for j in pickle.loads(packed)]
+        jobs = _unpack(packed)
         fitness: list[float] = []
         codes: list[int] = []
         first: tuple[int, str] | None = None
