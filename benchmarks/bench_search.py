@@ -388,7 +388,7 @@ def targets(bench: Bench, rows: Sequence[Row], generations: int) -> list[str]:
             checks = (n_solved == len(row.runs), gens <= gens_max, rate >= fresh_min,
                       eps < episodes_max)
             out.append(
-                f"- {name}: **{'yes' if all(checks) else 'no'}** — solved "
+                f"- {name}: **{_yes(all(checks))}** — solved "
                 f"{n_solved}/{len(row.runs)} ({_yes(checks[0])}); median "
                 f"{_num(gens)} generations, target ≤ {gens_max} ({_yes(checks[1])}); "
                 f"median fresh rate {rate:.3f}, target ≥ {fresh_min} ({_yes(checks[2])}); "
