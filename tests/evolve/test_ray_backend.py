@@ -32,3 +32,45 @@ def test_the_ray_tests_run_where_nothing_can_reach_them() -> None:
     import socket
 
     assert [name for _, name in socket.if_nameindex()] == ["lo"]
+
+
+def test_a_generation_is_cut_in_batches_of_one_chunk_per_actor(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Factoring: each batch gives every actor an equal chunk of a half share of what is
+    left (``chunks_per_worker`` 2), none under the floor; a generation with less work than
+    the floor per actor goes out in one even chunk per actor."""
+    ray = pytest.importorskip("ray")
+    import numpy as np
+
+    import evolve.evaluation as ev_mod
+    from evolve import Job, RayEvaluator, SerialEvaluator, SkillSet, initialize
+
+    task = load_task("examples.toy_task", p_fail=0.2)
+    skills = SkillSet.from_task(task)
+    rng = np.random.default_rng(0)
+    jobs = [Job.of(initialize(skills, rng, 8), 0, (1, 0, i), 2) for i in range(64)]
+    sizes: list[int] = []
+    pack = ev_mod._pack
+
+    def counted(chunk: list[Job]) -> bytes:
+        sizes.append(len(chunk))
+        return pack(chunk)
+
+    monkeypatch.setattr(ev_mod, "_pack", counted)
+    evaluator = RayEvaluator(task, skills, workers=2)
+    try:
+        serial = SerialEvaluator(task, skills).evaluate(jobs)
+        assert evaluator.evaluate(jobs) == serial  # untimed: an eighth of a share at least
+        assert sum(sizes) == 64 and sizes[:2] == [16, 16]
+        sizes.clear()
+        assert evaluator.evaluate(jobs) == serial  # timed: 64 toy jobs are under 80 ms
+        assert sizes == [32, 32]
+        monkeypatch.setattr(ev_mod, "_MIN_CHUNK_S", 0.0)
+        sizes.clear()
+        assert evaluator.evaluate(jobs) == serial
+        assert sorted(sizes, reverse=True) == [16, 16, 8, 8, 4, 4, 2, 2, 2, 2]
+    finally:
+        evaluator.close()
+        if ray.is_initialized():
+            ray.shutdown()
