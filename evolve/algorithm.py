@@ -196,6 +196,8 @@ class _Run:
         self.best: tuple[Genome, float, int] | None = None  # genome, fitness, generation
         self.history: list[GenerationRecord] = []
         self.cache: dict[tuple[Any, ...], tuple[float, int]] = {}
+        # confirm_candidates: genomes that failed a confirmation, and its mean
+        self.confirm_failed: dict[tuple[Any, ...], float] = {}
         self.evaluations = 0
         self.wall_before = 0.0
         self.next_uid = 0
@@ -226,6 +228,7 @@ class _Run:
                 genome(self.best[0]), self.best[1], self.best[2]],
             "history": [r.to_dict() for r in self.history],
             "cache": [[list(k), total, count] for k, (total, count) in self.cache.items()],
+            "confirm_failed": [[list(k), mean] for k, mean in self.confirm_failed.items()],
             "evaluations": self.evaluations,
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
@@ -255,6 +258,9 @@ class _Run:
             self.history = [GenerationRecord(**r) for r in st["history"]]
             self.cache = {
                 _tuples(k): (_number(total), _whole(count)) for k, total, count in st["cache"]
+            }
+            self.confirm_failed = {
+                _tuples(k): _number(mean) for k, mean in st.get("confirm_failed", [])
             }
             self.evaluations = _whole(st["evaluations"])
             self.wall_before = _number(st["wall_time"])
@@ -553,6 +559,8 @@ class _Run:
         of its evaluation's and its confirmation's episodes, wherever it is in the
         population."""
         assert self.best is not None
+        if self.cfg.confirm_candidates:
+            return self.confirm_candidates(fitness)
         g, evaluated, gen = self.best
         trials = 1 if self.task.deterministic else self.cfg.confirm_trials
         # By share: the same worlds for every confirmation of the run, so that an FSA (or a
@@ -573,6 +581,50 @@ class _Run:
         self.best = (g, mean, gen)
         if self.cfg.confirm_feedback:
             self.demote(g, fitness, evaluated, mean, trials)
+        return False
+
+    def confirm_candidates(self, fitness: list[float]) -> bool:
+        """``confirm_candidates``: confirm up to that many genomes of the population at the
+        target, the most tested first, each on fresh worlds of its own, skipping those that
+        failed before, until one passes; it becomes the best. Else the run's best takes the
+        last failed confirmation's mean (evolution goes on)."""
+        assert self.best is not None
+        cfg, task = self.cfg, self.task
+        trials = 1 if task.deterministic else cfg.confirm_trials
+        sizes = [len(x) for x in self.population]
+        keys = [x.key() for x in self.population]
+
+        def tested(i: int) -> int:
+            return self.cache.get(keys[i], (0.0, 0))[1]
+
+        order = sorted((i for i, f in enumerate(fitness) if task.solved(f)),
+                       key=lambda i: (*self.rank_key(fitness[i], sizes[i]), -tested(i), i))
+        tried: set[tuple[Any, ...]] = set()
+        for i in order:
+            key = keys[i]
+            if key in self.confirm_failed or key in tried:
+                continue
+            if len(tried) == cfg.confirm_candidates:
+                break
+            g = self.population[i]
+            job = Job.of(g, self.seed, (_CONFIRM, self.generation, len(tried)), trials)
+            tried.add(key)
+            scores: list[float] = []
+            with Guard(cfg.eval_time_limit) as guard:
+                mean, _, _ = evaluate_job(task, self.compiler, job, guard, False, scores)
+            self.evaluations += trials
+            if (sum(map(task.solved, scores)) >= cfg.confirm_rate * trials
+                    if cfg.confirm_rate > 0.0 and not task.deterministic
+                    else task.solved(mean)):
+                self.best = (g.copy(), fitness[i], self.generation)
+                return True
+            self.confirm_failed[key] = mean
+            self.best = (g.copy(), mean, self.generation)
+            if cfg.confirm_feedback:
+                self.demote(g, fitness, fitness[i], mean, trials)
+        if not tried:  # every genome at the target failed a confirmation before
+            g, _, gen = self.best
+            self.best = (g, self.confirm_failed.get(g.key(), task.worst), gen)
         return False
 
     def demote(self, g: Genome, fitness: list[float], evaluated: float, mean: float,

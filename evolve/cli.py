@@ -125,6 +125,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --confirm, a solution that fails its confirmation also takes "
                         "that fitness in the population (and the cache), so the next "
                         "candidate is confirmed instead of it")
+    p.add_argument("--confirm-candidates", type=whole(0, 10_000), dest="confirm_candidates",
+                   help="with --confirm, confirm up to this many genomes at the target each "
+                        "generation, the most tested first, until one passes; one that "
+                        "failed is never confirmed again (default 0: the best alone)")
     p.add_argument("--islands", type=whole(1, 10_000),
                    help="split the population into this many islands bred apart, with "
                    "migration (default 1: one population); --population is the total")
@@ -190,6 +194,7 @@ _SETTING_OPTIONS = (
     ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
     ("tournament", "tournament"), ("param_sigma", "param_sigma"),
     ("confirm_trials", "confirm_trials"), ("confirm_rate", "confirm_rate"),
+    ("confirm_candidates", "confirm_candidates"),
     ("p_param", "p_param"), ("islands", "islands"),
     ("migration_interval", "migration_interval"), ("migrants", "migrants"),
     ("topology", "topology"), ("restart_after", "restart_after"),

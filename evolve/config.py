@@ -66,6 +66,15 @@ class EvolutionConfig:
       candidate is confirmed instead of it (without it, only the run's record of the best
       changes, and the same genome, still scoring the target in the population, is confirmed
       again).
+    - ``confirm_candidates``: confirm up to this many genomes at the target each generation,
+      the most tested first (the most episodes in the cache), each on fresh worlds of its
+      own (with ``confirm_rate``, too: never the run's fixed ones), until one passes; a
+      genome that failed a confirmation is never confirmed again (it stays in the
+      population unless ``confirm_feedback``). Several candidates a
+      generation let a strict confirmation cost episodes rather than generations, and the
+      memory keeps a genome from passing by luck on a later draw (or a later generation's
+      candidates from being the same ones). 0 (default): the run's best alone, confirmed
+      again each generation it stays the best.
 
     Islands and diversity (all off by default; see docs/evolve.md, "Islands"):
 
@@ -126,6 +135,7 @@ class EvolutionConfig:
     confirm_trials: int = 0
     confirm_rate: float = 0.0
     confirm_feedback: bool = False
+    confirm_candidates: int = 0
     p_param: float = 0.0
     islands: int = 1
     migration_interval: int = 10
@@ -161,6 +171,7 @@ class EvolutionConfig:
         whole("elitism", 0)
         whole("cache_refresh", 0)
         whole("confirm_trials", 0)
+        whole("confirm_candidates", 0)
         whole("checkpoint_every", 1)
         whole("chunks_per_worker", 1)
         whole("islands", 1)
@@ -266,9 +277,10 @@ PRESETS: dict[str, dict[str, Any]] = {
         **_ISLANDS,
         "cache": True,
         "cache_refresh": 3,
+        "p_param": 0.3,
         "confirm_trials": 100,
         "confirm_rate": 1.0,
-        "confirm_feedback": True,
+        "confirm_candidates": 5,
     },
     "deterministic": {
         "population": 30,
@@ -307,10 +319,11 @@ fresh episodes.
 
 ``noisy`` is for noisy tasks where a solution must hold on nearly every episode, chosen on
 the pour-water task (see docs/results/search.md): the island preset, with the cache keeping
-every trial a genome has had (3 more each time it reappears, folded into its mean), and a
-solution confirmed on 100 fresh worlds, the same for the whole run, every one of which it
-must solve; a genome that fails its confirmation takes that fitness in the population, so
-the next candidate is confirmed.
+every trial a genome has had (3 more each time it reappears, folded into its mean), each
+node of a mutated child given parameter noise with probability 0.3, and a strict
+confirmation: up to 5 genomes at the target a generation, the most tested first, each on
+100 fresh worlds of its own, every one of which it must solve; a genome that failed is
+never confirmed again.
 
 ``deterministic`` is for tasks whose fitness never changes from one episode to the next
 (``Task.deterministic``: the classic FSA benchmarks in ``benchmarks/``, chosen there with

@@ -396,17 +396,51 @@ def test_confirm_feedback_confirms_each_genome_once(monkeypatch: pytest.MonkeyPa
     assert len(confirmed) > 5 and len(set(confirmed)) == len(confirmed)
 
 
+def test_confirm_candidates_confirms_several_genomes_a_generation_each_once(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """On the luck task (no FSA passes: its share of the target is about 0.7), three
+    candidates a generation are confirmed, each on worlds of its own, and a genome that
+    failed is never confirmed again, in the same or a later generation."""
+    from evolve import EvolutionConfigError, algorithm
+
+    task = _luck_task()
+    confirmed: list[tuple[object, ...]] = []
+    evaluate_job = algorithm.evaluate_job
+
+    def spy(task: Task, compiler: object, job: Job, *args: object) -> object:
+        if job.spawn_key[0] == algorithm._CONFIRM:
+            confirmed.append((job.genome, job.spawn_key))
+        return evaluate_job(task, compiler, job, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(algorithm, "evaluate_job", spy)
+    cfg = EvolutionConfig(population=12, initial_nodes=3, generations=20, trials=1,
+                          elitism=1, cache=True, cache_refresh=1, confirm_trials=50,
+                          confirm_rate=0.9, confirm_candidates=3)
+    run = evolve(task, cfg, seed=0, simplify_result=False)
+    assert not run.solved and run.generations == 20
+    per_generation = [sum(1 for _, k in confirmed if k[1] == g) for g in range(21)]
+    assert max(per_generation) == 3 and sum(per_generation) > 6
+    genomes = [code for code, _ in confirmed]
+    assert len(set(genomes)) == len(genomes)
+    assert len({k for _, k in confirmed}) == len(confirmed)  # fresh worlds for each
+    with pytest.raises(EvolutionConfigError, match=r"confirm_candidates = -1"):
+        EvolutionConfig(confirm_candidates=-1)
+
+
 def test_the_command_line_sets_confirm_feedback() -> None:
     from evolve.cli import _config, build_parser
 
     args = build_parser().parse_args(["evolve", "examples.toy_task", "--confirm", "100",
-                                      "--confirm-rate", "1", "--confirm-feedback"])
+                                      "--confirm-rate", "1", "--confirm-feedback",
+                                      "--confirm-candidates", "5"])
     cfg = _config(args)
-    assert (cfg.confirm_trials, cfg.confirm_rate, cfg.confirm_feedback) == (100, 1.0, True)
+    assert (cfg.confirm_trials, cfg.confirm_rate, cfg.confirm_feedback,
+            cfg.confirm_candidates) == (100, 1.0, True, 5)
     assert not _config(build_parser().parse_args(["evolve", "examples.toy_task"])
                        ).confirm_feedback
     noisy = _config(build_parser().parse_args(["evolve", "examples.toy_task", "--preset",
                                                "noisy"]))
     assert noisy == EvolutionConfig(**PRESETS["noisy"])
-    assert (noisy.islands, noisy.cache_refresh, noisy.confirm_trials, noisy.confirm_rate,
-            noisy.confirm_feedback) == (4, 3, 100, 1.0, True)
+    assert (noisy.islands, noisy.cache_refresh, noisy.p_param, noisy.confirm_trials,
+            noisy.confirm_rate, noisy.confirm_candidates, noisy.confirm_feedback) == (
+        4, 3, 0.3, 100, 1.0, 5, False)
