@@ -562,26 +562,32 @@ class _Run:
         if self.cfg.confirm_candidates:
             return self.confirm_candidates(fitness)
         g, evaluated, gen = self.best
-        trials = 1 if self.task.deterministic else self.cfg.confirm_trials
         # By share: the same worlds for every confirmation of the run, so that an FSA (or a
         # neutral variant of it) re-confirmed generation after generation cannot pass by
         # drawing a lucky sample at last. By mean: fresh worlds each generation (as before).
-        rate = self.cfg.confirm_rate
-        key = (_CONFIRM,) if rate > 0.0 else (_CONFIRM, self.generation)
-        job = Job.of(g, self.seed, key, trials)
-        scores: list[float] = []
-        with Guard(self.cfg.eval_time_limit) as guard:
-            mean, _, _ = evaluate_job(self.task, self.compiler, job, guard, False, scores)
-        self.evaluations += trials
-        if rate > 0.0 and not self.task.deterministic:
-            if sum(map(self.task.solved, scores)) >= rate * trials:
-                return True
-        elif self.task.solved(mean):
+        passed, mean, trials = self.confirmation(
+            g, (_CONFIRM,) if self.cfg.confirm_rate > 0.0 else (_CONFIRM, self.generation))
+        if passed:
             return True
         self.best = (g, mean, gen)
         if self.cfg.confirm_feedback:
             self.demote(g, fitness, evaluated, mean, trials)
         return False
+
+    def confirmation(self, g: Genome, worlds: tuple[int, ...]) -> tuple[bool, float, int]:
+        """Run ``g`` on the ``confirm_trials`` worlds drawn from ``worlds`` (one world on a
+        deterministic task): whether it passes (its mean at the target, or, with
+        ``confirm_rate``, that share of the episodes), its mean, and the episodes run."""
+        task, rate = self.task, self.cfg.confirm_rate
+        trials = 1 if task.deterministic else self.cfg.confirm_trials
+        scores: list[float] = []
+        with Guard(self.cfg.eval_time_limit) as guard:
+            mean, _, _ = evaluate_job(task, self.compiler, Job.of(g, self.seed, worlds, trials),
+                                      guard, False, scores)
+        self.evaluations += trials
+        if rate > 0.0 and not task.deterministic:
+            return sum(map(task.solved, scores)) >= rate * trials, mean, trials
+        return task.solved(mean), mean, trials
 
     def confirm_candidates(self, fitness: list[float]) -> bool:
         """``confirm_candidates``: confirm up to that many genomes of the population at the
@@ -590,7 +596,6 @@ class _Run:
         last failed confirmation's mean (evolution goes on)."""
         assert self.best is not None
         cfg, task = self.cfg, self.task
-        trials = 1 if task.deterministic else cfg.confirm_trials
         sizes = [len(x) for x in self.population]
         keys = [x.key() for x in self.population]
 
@@ -607,15 +612,10 @@ class _Run:
             if len(tried) == cfg.confirm_candidates:
                 break
             g = self.population[i]
-            job = Job.of(g, self.seed, (_CONFIRM, self.generation, len(tried)), trials)
+            passed, mean, trials = self.confirmation(
+                g, (_CONFIRM, self.generation, len(tried)))
             tried.add(key)
-            scores: list[float] = []
-            with Guard(cfg.eval_time_limit) as guard:
-                mean, _, _ = evaluate_job(task, self.compiler, job, guard, False, scores)
-            self.evaluations += trials
-            if (sum(map(task.solved, scores)) >= cfg.confirm_rate * trials
-                    if cfg.confirm_rate > 0.0 and not task.deterministic
-                    else task.solved(mean)):
+            if passed:
                 self.best = (g.copy(), fitness[i], self.generation)
                 return True
             self.confirm_failed[key] = mean

@@ -182,27 +182,38 @@ def test_the_command_line_sets_islands_and_the_island_preset() -> None:
     assert PRESETS["paper"] == {}  # the paper's table 1, untouched
 
 
-@pytest.mark.slow
-def test_failed_confirmations_fed_back_are_the_same_run_anywhere_and_after_resume(
-        tmp_path: Path) -> None:
-    """Seed 1 fails its confirmation in generations 4, 5, 7, 8, 9 and 10 and is solved in
-    11: the feedback (population and cache) is the same on every backend and resumes."""
+_CONFIRMING = EvolutionConfig(population=40, initial_nodes=8, generations=12, islands=2,
+                              elitism=1, trials=1, unique_children=True, cache=True,
+                              cache_refresh=1, confirm_trials=30, confirm_rate=1.0,
+                              checkpoint_every=2)
+"""Island runs of the toy task (p_fail 0.3, tolerance 0.5) whose seed 1 fails confirmations."""
+
+
+def _the_same_anywhere_and_resumed(cfg: EvolutionConfig, tmp_path: Path,
+                                   solved_in: int) -> EvolutionResult:
+    """Seed 1 of ``cfg``: solved in generation ``solved_in``, the same on a pool of two and
+    resumed from a checkpoint of generation 6. Returns the serial run."""
     task = load_task("examples.toy_task", p_fail=0.3, tolerance=0.5)
-    cfg = EvolutionConfig(population=40, initial_nodes=8, generations=12, islands=2,
-                          elitism=1, trials=1, unique_children=True, cache=True,
-                          cache_refresh=1, confirm_trials=30, confirm_rate=1.0,
-                          confirm_feedback=True, checkpoint_every=2)
     serial = evolve(task, cfg, seed=1, backend="serial", simplify_result=False,
                     check_trials=0)
     two = evolve(task, cfg, seed=1, backend="process", workers=2, simplify_result=False,
                  check_trials=0)
-    assert serial.solved and serial.generations == 11
+    assert serial.solved and serial.generations == solved_in
     assert _run(serial) == _run(two)
     short = evolve(task, cfg.replace(generations=6), seed=1, out_dir=tmp_path / "run",
                    simplify_result=False, check_trials=0)
     assert not short.solved and short.generations == 6
     resumed = evolve(task, cfg, resume=tmp_path / "run")
     assert _run(resumed) == _run(serial)
+    return serial
+
+
+@pytest.mark.slow
+def test_failed_confirmations_fed_back_are_the_same_run_anywhere_and_after_resume(
+        tmp_path: Path) -> None:
+    """Seed 1 fails its confirmation in generations 4, 5, 7, 8, 9 and 10 and is solved in
+    11: the feedback (population and cache) is the same on every backend and resumes."""
+    _the_same_anywhere_and_resumed(_CONFIRMING.replace(confirm_feedback=True), tmp_path, 11)
 
 
 @pytest.mark.slow
@@ -212,23 +223,10 @@ def test_several_candidates_confirmed_are_the_same_run_anywhere_and_after_resume
     and 7-9 (up to three a generation), none in 6 (every genome at the target had failed
     before), solved in 10. The memory of failed genomes is checkpointed: the run is the same
     on a pool and resumed from generation 6."""
-    task = load_task("examples.toy_task", p_fail=0.3, tolerance=0.5)
-    cfg = EvolutionConfig(population=40, initial_nodes=8, generations=12, islands=2,
-                          elitism=1, trials=1, unique_children=True, cache=True,
-                          cache_refresh=1, confirm_trials=30, confirm_rate=1.0,
-                          confirm_candidates=3, checkpoint_every=2)
-    serial = evolve(task, cfg, seed=1, backend="serial", simplify_result=False,
-                    check_trials=0)
-    two = evolve(task, cfg, seed=1, backend="process", workers=2, simplify_result=False,
-                 check_trials=0)
-    assert serial.solved and serial.generations == 10
-    assert _run(serial) == _run(two)
-    short = evolve(task, cfg.replace(generations=6), seed=1, out_dir=tmp_path / "run",
-                   simplify_result=False, check_trials=0)
-    assert not short.solved and short.generations == 6
-    resumed = evolve(task, cfg, resume=tmp_path / "run")
-    assert _run(resumed) == _run(serial)
+    cfg = _CONFIRMING.replace(confirm_candidates=3)
+    serial = _the_same_anywhere_and_resumed(cfg, tmp_path, 10)
     # without the memory (one candidate, confirmed again while it stays the best) the
     # same seed is another run
+    task = load_task("examples.toy_task", p_fail=0.3, tolerance=0.5)
     assert _run(evolve(task, cfg.replace(confirm_candidates=0), seed=1, backend="serial",
                        simplify_result=False, check_trials=0)) != _run(serial)
