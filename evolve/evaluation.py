@@ -177,7 +177,10 @@ class Guard:
     ``KeyboardInterrupt`` that a skill raised.
 
     Works through ``SIGALRM`` and ``SIGINT`` handlers, so only in the main thread of a
-    process (elsewhere :meth:`install` leaves it inactive: no limit). While installed, an
+    process (elsewhere :meth:`install` leaves it inactive: no limit). When the process
+    ignores ``SIGINT`` (started in the background) no Ctrl-C can arrive, so every
+    ``KeyboardInterrupt`` is a skill's; under a handler of someone else's (an IDE's, say)
+    it is taken for the person's. While installed, an
     interval timer ticks every quarter of the limit (at most every second); a tick that
     finds the armed evaluation past its limit raises into it, and so does every later tick
     until it is disarmed (a skill that catches the first one gets the next). Arming and
@@ -197,9 +200,12 @@ class Guard:
         if threading.current_thread() is not threading.main_thread():
             return self
         self.interrupted = False
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        handler = signal.getsignal(signal.SIGINT)
+        if handler is signal.default_int_handler:
             self._old = [(signal.SIGINT, signal.signal(signal.SIGINT, self._on_interrupt))]
             self.tracks_interrupts = True
+        elif handler == signal.SIG_IGN:  # started in the background (nohup, `&` in a
+            self.tracks_interrupts = True  # script): no Ctrl-C arrives, a skill raised it
         if self.time_limit is not None and hasattr(signal, "setitimer"):
             self._old.append((signal.SIGALRM, signal.signal(signal.SIGALRM, self._on_alarm)))
             tick = min(1.0, self.time_limit / 4)

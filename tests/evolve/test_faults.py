@@ -300,16 +300,42 @@ def test_sys_exit_in_a_skill_is_a_fault_not_the_end(capsys: pytest.CaptureFixtur
     assert "raised in 24 evaluations" in captured.err and "SystemExit: 0" in captured.err
 
 
-def test_keyboard_interrupt_raised_by_a_skill_is_a_fault() -> None:
+@pytest.mark.parametrize("sigint", ["default", "ignored"])
+def test_keyboard_interrupt_raised_by_a_skill_is_a_fault(
+        sigint: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """As run from a terminal, and in the background (``nohup``, ``&`` in a script), where
+    the process ignores SIGINT: either way the skill's KeyboardInterrupt is its fault."""
+    import signal
+
+    monkeypatch.setattr(signal, "getsignal", _sigint_as(sigint, signal.getsignal))
     task = load_task(FAULTY, fault="interrupt")
     result = evolve(task, SMALL, seed=0, simplify_result=False, check_trials=0)
     assert result.faults.raised > 0 and "KeyboardInterrupt" in str(result.faults.first_error)
 
 
+def _sigint_as(sigint: str, getsignal: Any) -> Any:
+    """``signal.getsignal`` reporting SIGINT's handler as Python's default or as ignored,
+    whatever pytest was started under."""
+    import signal
+
+    def reported(signum: int) -> Any:
+        if signum != signal.SIGINT:
+            return getsignal(signum)
+        return signal.default_int_handler if sigint == "default" else signal.SIG_IGN
+
+    return reported
+
+
 def test_a_real_ctrl_c_still_stops_the_run() -> None:
-    task = load_task(FAULTY, fault="sigint")
-    with pytest.raises(KeyboardInterrupt):
-        evolve(task, SMALL, seed=0, simplify_result=False, check_trials=0)
+    import signal
+
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)  # as from a terminal
+    try:
+        task = load_task(FAULTY, fault="sigint")
+        with pytest.raises(KeyboardInterrupt):
+            evolve(task, SMALL, seed=0, simplify_result=False, check_trials=0)
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 # -- item 17: workers are recycled --------------------------------------------------------------
