@@ -404,7 +404,7 @@ def test_confirm_candidates_confirms_several_genomes_a_generation_each_once(
     from evolve import EvolutionConfigError, algorithm
 
     task = _luck_task()
-    confirmed: list[tuple[object, ...]] = []
+    confirmed: list[tuple[tuple[object, ...], tuple[int, ...]]] = []
     evaluate_job = algorithm.evaluate_job
 
     def spy(task: Task, compiler: object, job: Job, *args: object) -> object:
