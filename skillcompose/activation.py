@@ -12,7 +12,7 @@ import copy
 import threading
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Final, Protocol
 
 import numpy as np
 
@@ -31,7 +31,7 @@ __all__ = [
     "start_instance",
 ]
 
-RUNNING = "running"
+RUNNING: Final = "running"
 """What ``tick()`` returns while a skill (or an FSA run) has not finished."""
 
 

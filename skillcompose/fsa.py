@@ -17,7 +17,7 @@ import dataclasses
 import difflib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from .errors import FSAValidationError, Problem, UnknownSkillError, clip
 from .params import param_problems, time_limit_problem
@@ -38,8 +38,8 @@ __all__ = [
     "State",
 ]
 
-TIMEOUT = "timeout"
-ERROR = "error"
+TIMEOUT: Final = "timeout"
+ERROR: Final = "error"
 PREEMPTED = "preempted"
 RESERVED_OUTCOMES = (TIMEOUT, ERROR, PREEMPTED)
 DEFAULT_TERMINALS = ("success", "failure")

@@ -72,7 +72,7 @@ class LayeredNetwork:
     topology: Topology = "layered"
 
     def __init__(
-        self, weights: Sequence[float], n_in: int = N_INPUTS, n_hidden: int = N_HIDDEN,
+        self, weights: Sequence[float] | FloatArray, n_in: int = N_INPUTS, n_hidden: int = N_HIDDEN,
         n_out: int = N_OUTPUTS,
     ) -> None:
         w = np.asarray(weights, dtype=np.float64)
@@ -98,7 +98,7 @@ class RecurrentNetwork:
     topology: Topology = "recurrent"
 
     def __init__(
-        self, weights: Sequence[float], n_in: int = N_INPUTS, n_hidden: int = N_HIDDEN,
+        self, weights: Sequence[float] | FloatArray, n_in: int = N_INPUTS, n_hidden: int = N_HIDDEN,
         n_out: int = N_OUTPUTS, updates: int = RECURRENT_UPDATES,
     ) -> None:
         w = np.asarray(weights, dtype=np.float64)

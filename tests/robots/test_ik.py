@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robots.ik import IKSolver, IKStatus, IKTarget, _find_mirrors, solve_ik
+from robots.ik import IKResult, IKSolver, IKStatus, IKTarget, _find_mirrors, solve_ik
 from robots.model import RobotModel
 
 pytestmark = pytest.mark.kinematics
@@ -165,19 +165,25 @@ def test_a_generator_per_call_draws_as_the_solver_seeded_alike(pr2: RobotModel) 
     chain = pr2.chain("left_arm_torso")
     goal = chain.transform_tool_to_world("left", chain.sample_coordinates(np.random.default_rng(9)))
     target = IKTarget.from_transform(goal)
-    options = {"initial": np.zeros(8), "time_budget_s": 10.0, "max_restarts": 6,
-               "diagnose": True, "collides": lambda chain, theta: True}  # every restart runs
-    seeded = IKSolver(chain=chain, arm="left", seed=4).solve(target, **options)
+    initial = np.zeros(8)
+
+    def solve(solver: IKSolver, rng: np.random.Generator | None = None) -> IKResult:
+        return solver.solve(target, initial=initial, time_budget_s=10.0, max_restarts=6,
+                            diagnose=True, collides=lambda chain, theta: True,  # every restart runs
+                            rng=rng)
+
+    seeded = solve(IKSolver(chain=chain, arm="left", seed=4))
     shared = IKSolver(chain=chain, arm="left", seed=0)
     own = shared.rng.bit_generator.state
-    given = shared.solve(target, rng=np.random.default_rng(4), **options)
+    given = solve(shared, rng=np.random.default_rng(4))
     assert shared.rng.bit_generator.state == own
     assert seeded.coordinates is not None and given.coordinates is not None
     np.testing.assert_array_equal(seeded.coordinates, given.coordinates)
     assert (seeded.status, seeded.iterations, seeded.restarts) == \
         (given.status, given.iterations, given.restarts)
     assert (given.status, given.restarts) == (IKStatus.COLLISION, 6)
-    other = shared.solve(target, rng=np.random.default_rng(5), **options)
+    other = solve(shared, rng=np.random.default_rng(5))
+    assert other.coordinates is not None
     assert not np.array_equal(other.coordinates, given.coordinates)
 
 

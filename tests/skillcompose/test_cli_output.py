@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -32,6 +33,7 @@ def test_version(capsys: pytest.CaptureFixture[str]) -> None:
 def test_every_subcommand_takes_q_and_v_before_and_after_it() -> None:
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
+    assert isinstance(sub, argparse._SubParsersAction)
     assert {"run", "validate", "show", "skills", "evolve", "robustness", "robot"} <= set(
         sub.choices)
     for name, command in sub.choices.items():

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Generator
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, cast
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
@@ -22,6 +22,7 @@ from skillcompose import (
     Param,
     Registry,
     RunResult,
+    Skill,
     State,
     compile_fsa,
     skill,
@@ -94,7 +95,8 @@ def crawl(
     return "success" if rng.random() < 0.6 else "failure"
 
 
-SKILLS = [nudge, coin, fragile, Count, Spin, crawl]
+# mypy ignores class decorators: the classes Count and Spin are Skills
+SKILLS: list[Skill] = [nudge, coin, fragile, cast(Skill, Count), cast(Skill, Spin), crawl]
 
 
 def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
@@ -178,17 +180,17 @@ def all_modes(compiled: CompiledFSA, task: Task, seed: int) -> None:
     for name, got in results.items():
         if name != "outcome":
             assert got == first, name
-    for name, got in traces.items():
-        assert got == traces["traced"], name
-    trace = traces["traced"]
-    assert [s[0] for s in trace] == list(range(1, first[1] + 1))  # one record per step
-    assert trace[0][1] == compiled.fsa.start
-    for before, after in itertools.pairwise(trace):
+    for name, got_trace in traces.items():
+        assert got_trace == traces["traced"], name
+    traced = traces["traced"]
+    assert [s[0] for s in traced] == list(range(1, first[1] + 1))  # one record per step
+    assert traced[0][1] == compiled.fsa.start
+    for before, after in itertools.pairwise(traced):
         assert before[4] == after[1]  # each step's target is the next step's state
     if first[0] == "timeout":  # the step limit: the run stops before the next state
-        assert first[1] == compiled.step_limit and trace[-1][4] == first[2]
+        assert first[1] == compiled.step_limit and traced[-1][4] == first[2]
     else:  # a terminal outcome, or the error of the last state
-        assert (trace[-1][1], trace[-1][4]) == (first[2], first[0])
+        assert (traced[-1][1], traced[-1][4]) == (first[2], first[0])
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

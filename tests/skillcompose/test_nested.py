@@ -31,6 +31,7 @@ REACH = FSA(
 def test_an_fsa_becomes_a_skill_sharing_the_blackboard(tmp_path: Path) -> None:
     reg = Registry.from_modules([demo_skills])
     path = save_fsa(REACH, tmp_path / "reach.fsa.yaml").path
+    assert path is not None
     nested = reg.add_fsa(path)  # from a file, as the paper's stacking reuses MoveToReach
     assert nested.spec.outcomes == ("success", "failure")
     assert nested.spec.writes >= {"jug", "gripper"}

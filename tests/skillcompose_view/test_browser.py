@@ -211,8 +211,11 @@ def test_replay_active_state_follows_the_trace(viewer: Viewer, runs_dir: Path,
     for k, state in enumerate(states, start=1):
         page.page.get_by_test_id("forward").click()
         skill = load_fsa(path).states[state].skill
-        wait_for(lambda s=state, sk=skill: active() == (s, [f"{s}{sk}"]),
-                 what=f"step {k}: {state}")
+
+        def shown(s: str = state, sk: str = skill) -> bool:
+            return active() == (s, [f"{s}{sk}"])
+
+        wait_for(shown, what=f"step {k}: {state}")
         assert page.page.get_by_test_id("step-label").inner_text().startswith(
             f"step {k} of {len(states)}: {state} ")
     assert page.page.get_by_test_id("forward").is_disabled()

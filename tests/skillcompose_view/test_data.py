@@ -8,12 +8,13 @@ import os
 import socket
 import subprocess
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
 
 from examples import live_patrol
-from skillcompose import load_fsa
+from skillcompose import FSA, load_fsa
 from skillcompose.cli import main
 from skillcompose_view.data import find_runs, mermaid, read_fsa, read_history
 from skillcompose_view.episode import run_episode
@@ -24,7 +25,7 @@ from .conftest import REPO, child_env
 POUR = REPO / "examples" / "pour_water_reference.fsa.yaml"
 
 
-def write_run(path: Path, info: dict[str, object], generations: int) -> None:
+def write_run(path: Path, info: Mapping[str, object], generations: int) -> None:
     path.mkdir(parents=True)
     (path / "run.json").write_text(json.dumps(info))
     with (path / "history.jsonl").open("w") as f:
@@ -122,7 +123,7 @@ def test_live_patrol_publishes_each_state(tmp_path: Path,
     assert load_fsa_text(record["fsa"]).states.keys() == {"Drive", "Scan", "Dock"}
 
 
-def load_fsa_text(text: str) -> object:
+def load_fsa_text(text: str) -> FSA:
     from skillcompose.fsafile import loads_fsa
 
     return loads_fsa(text)
