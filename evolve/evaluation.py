@@ -665,6 +665,7 @@ class ProcessEvaluator:
         self._counter: Any = self._ctx.Value("q", 0)
         self._shared = self._allocate(0)
         self._killed: set[int] = set()  # pids the parent killed for running over time
+        self._dead_since_check = False  # a worker died since the counter's lock was checked
         self._errors: list[tuple[int, str]] = []
         self._deaths = 0
         self._recycled = 0
@@ -775,6 +776,10 @@ class ProcessEvaluator:
         comes; the positions of the jobs no worker finished."""
         results, codes = self._shared.results, self._shared.codes
         self._batch += 1
+        self._dead_since_check = False
+        if not self._counter_free():  # a worker died claiming a chunk, holding its lock
+            self._terminate()
+            self._workers(0)
         with self._counter.get_lock():
             self._counter.value = 0
         # each message pickled once for all workers, and kept for one that joins half-way
@@ -794,6 +799,10 @@ class ProcessEvaluator:
                 self._broadcast((k, at, _pack(chunk)), sent, active)
             self._broadcast(("end", len(spans)), sent, active)
             while active:
+                if self._dead_since_check:  # one that died claiming a chunk holds the
+                    self._dead_since_check = False  # counter's lock: the others would
+                    if not self._counter_free():  # wait for it for ever
+                        self._restart(active, sent)
                 ready_now = wait(list(active), tick)
                 if not ready_now and kill_after is not None:
                     self._kill_overdue(active.values(), kill_after)
@@ -820,6 +829,25 @@ class ProcessEvaluator:
             raise
         return [p for at, n in spans for p in range(at, at + n) if math.isnan(results[p])]
 
+    def _counter_free(self, timeout: float = 1.0) -> bool:
+        """Whether the chunk counter's lock can be taken (a claim holds it for microseconds;
+        a worker killed while claiming holds it for good)."""
+        lock = self._counter.get_lock()
+        if not lock.acquire(timeout=timeout):
+            return False
+        lock.release()
+        return True
+
+    def _restart(self, active: dict[Connection, _Worker], sent: list[memoryview]) -> None:
+        """Replace every worker (they share a fresh counter) and have them run the batch
+        again from its first chunk: what was finished is evaluated again, to the same
+        results; only a job that overran its limit costs its time again."""
+        self._terminate()
+        active.clear()
+        for worker in self._workers(0):
+            worker = self._join(worker, sent)
+            active[worker.conn] = worker
+
     def _kill_overdue(self, workers: Iterable[_Worker], kill_after: float) -> None:
         """Kill each worker whose job has run past the limit without stopping: that job
         scores worst as a time-out; the worker's death is then handled as any other."""
@@ -836,6 +864,7 @@ class ProcessEvaluator:
 
     def _buried(self, worker: _Worker) -> None:
         """Count a worker found dead (one the parent killed for time is no death)."""
+        self._dead_since_check = True
         if worker.process.pid in self._killed:
             self._killed.discard(worker.process.pid)
         else:

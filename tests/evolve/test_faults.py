@@ -276,6 +276,46 @@ def test_an_interrupted_batch_leaves_no_lock_held(monkeypatch: pytest.MonkeyPatc
         ev.close()
 
 
+def test_a_worker_killed_claiming_a_chunk_costs_no_result(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A worker that dies while it holds the shared counter's lock (killed for time as its
+    job ended, say) would leave the others waiting on it for ever: the pool is replaced and
+    the batch run again, to the serial results, and one death is counted."""
+    import signal
+
+    import evolve.evaluation as evaluation
+
+    task = load_task(FAULTY)
+    jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"] * 4)
+    expected = SerialEvaluator(task, SkillSet.from_task(task)).evaluate(jobs)
+    ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=2)
+    run_packed = evaluation._run_packed
+    marker = tmp_path / "died"
+
+    def dies_claiming(*args: Any) -> int:
+        done = run_packed(*args)
+        if not marker.exists():  # once: the first chunk's worker dies taking the lock
+            marker.touch()
+            ev._counter.get_lock().acquire()
+            os._exit(1)
+        return done
+
+    def hung(signum: int, frame: object) -> None:
+        raise TimeoutError("the pool waited on a dead worker's lock")
+
+    monkeypatch.setattr(evaluation, "_run_packed", dies_claiming)  # forked workers inherit it
+    old = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(60)
+    try:
+        assert ev.evaluate(jobs) == expected
+        assert marker.exists() and ev.faults.worker_deaths == 1
+        assert ev.evaluate(jobs) == expected  # the next batch, on the fresh pool
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+        ev.close()
+
+
 def test_dead_workers_are_counted_as_lost_jobs() -> None:
     task = load_task("tests.evolve.crashy_task", p_fail=0.0)
     result = evolve(task, SMALL, seed=0, backend="process", workers=2, simplify_result=False,
