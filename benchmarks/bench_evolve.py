@@ -163,25 +163,96 @@ _IN_PRIVATE_NET = "SKILLCOMPOSE_BENCH_PRIVATE_NET"
 
 
 @contextlib.contextmanager
-def ray_cluster(task: Any, skills: SkillSet, nodes: int) -> Iterator[RayEvaluator]:
-    """A Ray evaluator on a local cluster of ``nodes`` nodes of one CPU each, started here
-    and stopped on leaving."""
+def ray_address(nodes: int) -> Iterator[None]:
+    """A local Ray cluster of ``nodes`` nodes of one CPU each, started here, named by
+    ``RAY_ADDRESS`` (so ``backend="ray"`` connects to it) and stopped on leaving."""
     from evolve.ray_local import local_cluster
 
     with local_cluster(nodes) as cluster:
         os.environ.update(cluster.env)  # before Ray is imported: it reads them then
         os.environ["RAY_ADDRESS"] = cluster.address
-        import ray
-
         try:
-            ev = RayEvaluator(task, skills)
-            try:
-                yield ev
-            finally:
-                ev.close()
+            yield
         finally:
+            import ray
+
             ray.shutdown()
             del os.environ["RAY_ADDRESS"]
+
+
+@contextlib.contextmanager
+def ray_cluster(task: Any, skills: SkillSet, nodes: int) -> Iterator[RayEvaluator]:
+    """A Ray evaluator on a local cluster of ``nodes`` nodes of one CPU each, started here
+    and stopped on leaving."""
+    with ray_address(nodes):
+        ev = RayEvaluator(task, skills)
+        try:
+            yield ev
+        finally:
+            ev.close()
+
+
+@contextlib.contextmanager
+def _whole_generations() -> Iterator[None]:
+    """Have ``evolve()``'s evaluators take each generation whole, bred first (as the Ray
+    backend did before it streamed), to compare in the same run."""
+    from unittest import mock
+
+    import evolve.algorithm as algorithm
+
+    made = algorithm.make_evaluator
+
+    def whole(*a: Any, **k: Any) -> Any:
+        ev = made(*a, **k)
+        evaluate = ev.evaluate
+        ev.evaluate = lambda jobs, expected=None: evaluate(list(jobs), expected)  # type: ignore[method-assign]
+        return ev
+
+    with mock.patch.object(algorithm, "make_evaluator", whole):
+        yield
+
+
+def ray_whole_runs(task: Any, workers: int, generations: int, runs: int) -> None:
+    """Whole runs on a local Ray cluster beside serial and the pool: seconds from the end of
+    generation 0 to the end of the last (breeding, checkpoints and evaluation; not the
+    start of the workers, which on Ray includes shipping the code), best of ``runs``
+    interleaved runs, each run checked equal to the serial one."""
+    backends: dict[str, tuple[str, bool]] = {
+        "serial": ("serial", False), "pool": ("process", False),
+        "Ray": ("ray", False), "Ray, bred first": ("ray", True)}
+    print(f"Whole runs on a local Ray cluster of {workers} nodes, {generations} generations "
+          f"from seed 1000: seconds after generation 0, best of {runs} interleaved runs; "
+          "'Ray, bred first' takes each generation whole (breeding does not overlap "
+          "evaluation), as the Ray backend did before\n")
+    print(f"{'preset':8} {'population x trials':>19} " + " ".join(
+        f"{b + ' s':>17}" for b in backends) + f" {'pool':>7} {'Ray':>7} {'bred first':>11}")
+    with ray_address(workers):
+        for name in ("paper", "robust"):
+            cfg = EvolutionConfig(**{**PRESETS[name], "generations": generations})
+            walls: dict[str, list[float]] = {b: [] for b in backends}
+            histories: dict[str, list[tuple[float, ...]]] = {}
+            for _ in range(runs):
+                for label, (backend, whole) in backends.items():
+                    ends: list[float] = []
+
+                    def ended(_: Any, ends: list[float] = ends) -> None:
+                        ends.append(time.perf_counter())
+
+                    with _whole_generations() if whole else contextlib.nullcontext():
+                        r = evolve(task, cfg, seed=1000, backend=backend,
+                                   workers=1 if backend == "serial" else workers,
+                                   simplify_result=False, on_generation=ended)
+                    walls[label].append(ends[-1] - ends[0])
+                    histories[label] = [(h.best, h.mean, h.total_evaluations)
+                                        for h in r.history]
+            if any(h != histories["serial"] for h in histories.values()):
+                raise SystemExit(f"preset {name}: a run differs from the serial one")
+            best = {b: min(w) for b, w in walls.items()}
+            shape = f"{cfg.population} x {cfg.trials or task.trials}"
+            print(f"{name:8} {shape:>19} " + " ".join(f"{best[b]:17.2f}" for b in backends)
+                  + f" {best['serial'] / best['pool']:6.2f}x {best['serial'] / best['Ray']:6.2f}x"
+                  f" {best['serial'] / best['Ray, bred first']:10.2f}x")
+    print()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -202,6 +273,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ray", action="store_true",
                     help="add a row on a local Ray cluster of --workers nodes of 1 CPU each, "
                     "started and stopped by this script")
+    ap.add_argument("--ray-runs", type=int, default=5,
+                    help="interleaved whole runs per backend on Ray (default 5)")
+    ap.add_argument("--ray-only", action="store_true",
+                    help="with --ray: only the whole runs beside Ray, not the throughput "
+                         "table, the other whole runs or the time to solve")
     ap.add_argument("--no-solve", action="store_true",
                     help="skip the time to solve over seeds")
     ap.add_argument("--throughput-only", action="store_true",
@@ -225,6 +301,9 @@ def main(argv: list[str] | None = None) -> int:
     settings = parse_settings(args.settings)
     task = load_task(args.task, **settings)
     quick = args.quick
+    if args.ray and args.ray_only:
+        ray_whole_runs(task, args.workers, 5 if quick else 25, 2 if quick else args.ray_runs)
+        return 0
 
     # 1. throughput: the same jobs (one generation of random genomes) evaluated serially and
     # on each parallel evaluator, back to back, many times; this machine's speed drifts by up
@@ -279,6 +358,9 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.throughput_only:
         return 0
+
+    if args.ray:
+        ray_whole_runs(task, args.workers, 5 if quick else 25, 2 if quick else args.ray_runs)
 
     # 2. whole runs: what a user waits for, breeding and checkpoints included (the pool
     # evaluates each child as it is born, so breeding overlaps evaluation)

@@ -1135,12 +1135,20 @@ class RayEvaluator:
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]:
         ray = self._ray
-        jobs = list(jobs)
         faults = Faults()
         self.faults = faults
         self.nodes = []
-        if not jobs:
-            return []
+        # a generation handed over as it is bred (an iterator, with its expected size) goes
+        # out as it comes, so the actors evaluate while the driver breeds the rest; islands
+        # need the whole generation first, to cut it into runs at home on their nodes
+        stream: Iterator[Job] | None = None
+        if not isinstance(jobs, Sequence) and expected and self.groups <= 1:
+            stream = iter(jobs)
+            jobs = []
+        else:
+            jobs = list(jobs)
+            if not jobs:
+                return []
         n = len(jobs)
         out = [math.nan] * n
         codes = [0] * n
@@ -1166,6 +1174,12 @@ class RayEvaluator:
                 return p, [jobs[p]], True
             if again:
                 return (*again.pop(0), False)
+            if stream is not None:  # chunks of a fixed size while the jobs come
+                start, end = spans[0]
+                if end - start < streamed:
+                    return None
+                spans[0][0] = start + streamed
+                return start, jobs[start:start + streamed], False
             own = [k for k in range(groups) if home[k] in ("", actor.node)]
             for k in own + [k for k in range(groups) if k not in own]:
                 start, end = spans[k]
@@ -1193,13 +1207,38 @@ class RayEvaluator:
 
         tail = least(n, self.chunks_per_worker * max(1, len(self._actors)))
         busy = [0.0, 0]  # seconds the actors spent on jobs, and jobs, this generation
+        # while streaming: chunks of a half share of the expected jobs per actor (and never
+        # under a tenth of the time floor once timed), each actor holding two
+        streamed = max(math.ceil((expected or 1) / (self.chunks_per_worker * 2 * max(
+            1, len(self._actors)))), 1 if self._job_s is None else
+            math.ceil(_MIN_CHUNK_S / 10 / self._job_s))
+
+        def pull() -> None:
+            """Take a chunk's worth more jobs from the stream (bred meanwhile); at its end,
+            the generation is whole and what is left goes out by factoring."""
+            nonlocal stream, n, tail
+            assert stream is not None
+            for _ in range(streamed):
+                job = next(stream, None)
+                if job is None:
+                    stream = None
+                    break
+                jobs.append(job)
+                out.append(math.nan)
+                codes.append(0)
+                nodes.append("")
+            n = len(jobs)
+            spans[0][1] = n
+            if stream is None:
+                tail = least(n, self.chunks_per_worker * max(1, len(self._actors)))
 
         def feed(actor: _Actor, most: int = 2) -> None:
             # a second call waits behind the running one (hiding the round trip) only while
             # more than a chunk per actor is left: at the end of a generation a queued chunk
             # would keep its actor busy while another, free, has nothing to take
             while not actor.retiring and len(actor.calls) < min(most, (
-                    2 if sum(e - s for s, e in spans) > tail * len(self._actors) else 1)):
+                    2 if stream is not None or sum(e - s for s, e in spans) >
+                    tail * len(self._actors) else 1)):
                 work = next_work(actor)
                 if work is None:
                     return
@@ -1259,16 +1298,21 @@ class RayEvaluator:
 
         feed_all()
         while True:
+            if stream is not None:
+                pull()
             self._await_actors()
             feed_all()
             calls = {c[0]: a for a in self._actors for c in a.calls}
             if not calls:
-                if all(a >= b for a, b in spans) and not singles and not again:
+                if stream is None and all(a >= b for a, b in spans) and not singles \
+                        and not again:
                     break
                 if not self._actors:  # every actor died: wait for a replacement
                     self._await_actors(timeout=self.start_timeout)
                 continue
-            done, _ = ray.wait(list(calls), num_returns=1, timeout=tick)
+            # while jobs come, only what is back now: then on to take (breed) more
+            done, _ = ray.wait(list(calls), num_returns=1,
+                               timeout=0.0 if stream is not None else tick)
             for ref in done:
                 actor = calls[ref]
                 if actor not in self._actors:  # already handled as dead in this round

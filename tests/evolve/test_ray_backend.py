@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
 from evolve import EvolutionConfig, evolve
@@ -70,6 +72,62 @@ def test_a_generation_is_cut_in_batches_of_one_chunk_per_actor(
         sizes.clear()
         assert evaluator.evaluate(jobs) == serial
         assert sorted(sizes, reverse=True) == [16, 16, 8, 8, 4, 4, 2, 2, 2, 2]
+    finally:
+        evaluator.close()
+        if ray.is_initialized():
+            ray.shutdown()
+
+
+def test_a_generation_given_as_it_is_bred_goes_out_as_it_comes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Streaming: jobs handed over by a generator with their expected number reach the
+    actors in chunks of a half share of the expected jobs per actor while the generator
+    still runs (evolve() breeds that way), and the fitnesses are the serial ones; a list
+    goes out by factoring, as before."""
+    ray = pytest.importorskip("ray")
+    import numpy as np
+
+    import evolve.evaluation as ev_mod
+    from evolve import Job, RayEvaluator, SerialEvaluator, SkillSet, initialize
+
+    task = load_task("examples.toy_task", p_fail=0.2)
+    skills = SkillSet.from_task(task)
+    rng = np.random.default_rng(0)
+    jobs = [Job.of(initialize(skills, rng, 8), 0, (1, 0, i), 2) for i in range(64)]
+    sizes: list[int] = []
+    pack = ev_mod._pack
+
+    def counted(chunk: list[Job]) -> bytes:
+        sizes.append(len(chunk))
+        return pack(chunk)
+
+    sent_before: list[int] = []  # chunks sent when each job was handed over
+
+    def bred() -> Iterator[Job]:
+        for job in jobs:
+            sent_before.append(len(sizes))
+            yield job
+
+    monkeypatch.setattr(ev_mod, "_pack", counted)
+    evaluator = RayEvaluator(task, skills, workers=2)
+    try:
+        serial = SerialEvaluator(task, skills).evaluate(jobs)
+        assert evaluator.evaluate(bred(), expected=64) == serial
+        # a chunk of 8 sent as each 8 jobs come, until both actors hold two; what comes
+        # back meanwhile, and what is left at the end, depends on timing
+        assert sum(sizes) == 64 and sizes[:4] == [8] * 4
+        assert sent_before[:33] == [0] * 8 + [1] * 8 + [2] * 8 + [3] * 8 + [4]
+        sizes.clear()
+        assert evaluator.evaluate(jobs, expected=64) == serial  # whole: factoring
+        assert sizes == [32, 32]
+        assert evaluator.evaluate(iter(()), expected=64) == []  # a generation all cached
+        assert evaluator.evaluate(bred(), expected=100) == serial  # fewer than expected
+        evaluator.groups = 2  # islands: the whole generation first
+        sent_before.clear()
+        sizes.clear()
+        assert evaluator.evaluate(bred(), expected=64) == serial
+        assert max(sent_before) == 0
     finally:
         evaluator.close()
         if ray.is_initialized():
