@@ -87,12 +87,45 @@ def pid_alive(pid: int) -> bool:
     return True
 
 
-def _lock_holder(run_dir: Path) -> int | None:
-    """The process that wrote ``.lock`` if it still lives (an evolve writes its process id
-    there while it holds the lock)."""
+def _lockers(path: Path) -> list[int] | None:
+    """The processes holding a lock on ``path``, as the system lists them in /proc/locks
+    (Linux), or None where it does not."""
     try:
-        text = (run_dir / ".lock").read_text(encoding="utf-8", errors="replace")[:32].strip()
-        pid = int(text)
+        st = path.stat()
+        with open("/proc/locks", encoding="ascii", errors="replace") as f:
+            text = f.read()
+    except OSError:
+        return None
+    want = (os.major(st.st_dev), os.minor(st.st_dev), st.st_ino)
+    pids = []
+    for line in text.splitlines():
+        parts = line.split()  # "1: POSIX  ADVISORY  WRITE 4242 fe:00:6029412 0 EOF"
+        if len(parts) < 6 or parts[1] == "->":  # "->": a process waiting for the lock
+            continue
+        try:
+            major, minor, inode = parts[5].split(":")
+            if (int(major, 16), int(minor, 16), int(inode)) == want:
+                pids.append(int(parts[4]))
+        except ValueError:
+            continue
+    return pids
+
+
+def _lock_holder(run_dir: Path) -> int | None:
+    """The process evolving in ``run_dir``: the one holding the lock on ``.lock`` (an
+    evolve holds it while it runs, and writes its process id there). The lock is read from
+    the system's list, without opening the file (closing any descriptor of a file drops
+    the POSIX locks its process holds on it, so an evolve running in this process would
+    lose its own) and without trying the lock (trying it, even shared, could make an
+    ``evolve --resume`` starting at that moment fail). Where the system lists no locks,
+    the process whose id is written there, if it lives (which an id reused by another
+    process can fake)."""
+    lock = run_dir / ".lock"
+    holders = _lockers(lock)
+    if holders is not None:
+        return holders[0] if holders else None
+    try:
+        pid = int(lock.read_text(encoding="utf-8", errors="replace")[:32].strip())
     except (OSError, ValueError):
         return None
     return pid if pid > 0 and pid_alive(pid) else None

@@ -23,6 +23,8 @@ from urllib.parse import urlsplit
 
 import pytest
 
+from evolve.rundir import RunDir
+
 REPO = Path(__file__).resolve().parents[2]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 START_TIMEOUT_S = 40.0
@@ -84,7 +86,7 @@ def start_viewer(args: list[str], log: Path, cwd: Path) -> Viewer:
 
 
 @pytest.fixture(scope="module")
-def runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     """A folder with one finished evolution of the toy task (5 generations, made by
     ``skillcompose evolve``), one run being written (``grow``: run.json without a result, a
     lock held by this process, 3 generations) and the pour-water reference FSA."""
@@ -101,11 +103,15 @@ def runs_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (grow / "run.json").write_text(json.dumps({
         "task": "toy_fetch", "task_module": "examples.toy_task", "task_settings":
         {"p_fail": 0.1}, "seed": 7, "config": {"population": 30, "generations": 50}}))
-    (grow / ".lock").write_text(f"{os.getpid()}\n")
+    held = RunDir(grow)
+    held.lock()  # as evolve holds it while it runs
     for g in range(3):
         append_generation(grow, g)
     shutil.copy(REPO / "examples" / "pour_water_reference.fsa.yaml", root / "pour.fsa.yaml")
-    return root
+    try:
+        yield root
+    finally:
+        held.unlock()
 
 
 def append_generation(run: Path, g: int) -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from evolve.rundir import RunDir
 from examples import live_patrol
 from skillcompose import FSA, load_fsa
 from skillcompose.cli import main
@@ -44,14 +45,18 @@ def test_runs_and_their_status(tmp_path: Path) -> None:
     done = {"task": "t", "result": {"best_fitness": 0.25, "fresh": {"success_rate": 0.9}}}
     write_run(tmp_path / "a" / "finished", done, 4)
     write_run(tmp_path / "running", {"task": "t"}, 2)
-    (tmp_path / "running" / ".lock").write_text(f"{os.getpid()}\n")
+    held = RunDir(tmp_path / "running")
+    held.lock()  # as evolve holds it while it runs
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     write_run(tmp_path / "stopped", {"task": "t"}, 3)
     (tmp_path / "stopped" / ".lock").write_text(f"{dead.pid}\n")
     (tmp_path / "torn").mkdir()
     (tmp_path / "torn" / "run.json").write_text('{"task": ')
-    runs = {r.name: r for r in find_runs(tmp_path)}
+    try:
+        runs = {r.name: r for r in find_runs(tmp_path)}
+    finally:
+        held.unlock()
     assert {n: r.status for n, r in runs.items()} == {
         "a/finished": "finished", "running": "running", "stopped": "interrupted",
         "torn": "unreadable"}
@@ -158,3 +163,19 @@ def test_core_does_not_import_the_viewer() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env=child_env()).stdout
     assert out.strip() == "[]"
+
+
+@pytest.mark.skipif(not Path("/proc/locks").exists(), reason="the system lists no locks")
+def test_a_run_whose_process_id_was_reused_is_not_running(tmp_path: Path) -> None:
+    """A run killed by force leaves its process id in ``.lock``; once another process has
+    that id, the run is still interrupted: what counts is who holds the lock."""
+    write_run(tmp_path / "killed", {"task": "t"}, 2)
+    (tmp_path / "killed" / ".lock").write_text(f"{os.getpid()}\n")  # a live process's id
+    assert [r.status for r in find_runs(tmp_path)] == ["interrupted"]
+    held = RunDir(tmp_path / "killed")
+    held.lock()
+    try:
+        assert [r.status for r in find_runs(tmp_path)] == ["running"]
+    finally:
+        held.unlock()
+    assert [r.status for r in find_runs(tmp_path)] == ["interrupted"]
