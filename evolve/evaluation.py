@@ -1138,6 +1138,8 @@ class RayEvaluator:
         faults = Faults()
         self.faults = faults
         self.nodes = []
+        for actor in [a for a in self._actors if a.calls]:  # a generation ended by an
+            self._drop(actor, kill=True)  # exception (its jobs' breeding raised, Ctrl-C)
         # a generation handed over as it is bred (an iterator, with its expected size) goes
         # out as it comes, so the actors evaluate while the driver breeds the rest; islands
         # need the whole generation first, to cut it into runs at home on their nodes

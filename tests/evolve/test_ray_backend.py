@@ -123,6 +123,15 @@ def test_a_generation_given_as_it_is_bred_goes_out_as_it_comes(
         assert sizes == [32, 32]
         assert evaluator.evaluate(iter(()), expected=64) == []  # a generation all cached
         assert evaluator.evaluate(bred(), expected=100) == serial  # fewer than expected
+
+
+        def broken() -> Iterator[Job]:  # breeding raises half-way, chunks in flight
+            yield from jobs[::-1][:40]  # other jobs at those positions
+            raise RuntimeError("breeding failed")
+
+        with pytest.raises(RuntimeError, match="breeding failed"):
+            evaluator.evaluate(broken(), expected=64)
+        assert evaluator.evaluate(jobs) == serial  # nothing of the broken one mixed in
         evaluator.groups = 2  # islands: the whole generation first
         sent_before.clear()
         sizes.clear()
