@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any, NamedTuple
 
 import pytest
 
@@ -36,108 +37,98 @@ def test_the_ray_tests_run_where_nothing_can_reach_them() -> None:
     assert [name for _, name in socket.if_nameindex()] == ["lo"]
 
 
+class _Counted(NamedTuple):
+    """A Ray evaluator of 2 actors for 64 toy jobs, the serial fitnesses, and the sizes of
+    the chunks sent (each chunk's jobs as they are packed)."""
+
+    evaluator: Any
+    jobs: list[Any]
+    serial: list[float]
+    sizes: list[int]
+
+
+@pytest.fixture
+def counted(monkeypatch: pytest.MonkeyPatch) -> Iterator[_Counted]:
+    ray = pytest.importorskip("ray")
+    import numpy as np
+
+    import evolve.evaluation as ev_mod
+    from evolve import Job, RayEvaluator, SerialEvaluator, SkillSet, initialize
+
+    task = load_task("examples.toy_task", p_fail=0.2)
+    skills = SkillSet.from_task(task)
+    rng = np.random.default_rng(0)
+    jobs = [Job.of(initialize(skills, rng, 8), 0, (1, 0, i), 2) for i in range(64)]
+    sizes: list[int] = []
+    pack = ev_mod._pack
+
+    def packed(chunk: list[Job]) -> bytes:
+        sizes.append(len(chunk))
+        return pack(chunk)
+
+    monkeypatch.setattr(ev_mod, "_pack", packed)
+    evaluator = RayEvaluator(task, skills, workers=2)
+    try:
+        yield _Counted(evaluator, jobs, SerialEvaluator(task, skills).evaluate(jobs), sizes)
+    finally:
+        evaluator.close()
+        if ray.is_initialized():
+            ray.shutdown()
+
+
 def test_a_generation_is_cut_in_batches_of_one_chunk_per_actor(
-    monkeypatch: pytest.MonkeyPatch,
+    counted: _Counted, monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Factoring: each batch gives every actor an equal chunk of a half share of what is
     left (``chunks_per_worker`` 2), none under the floor; a generation with less work than
     the floor per actor goes out in one even chunk per actor."""
-    ray = pytest.importorskip("ray")
-    import numpy as np
-
     import evolve.evaluation as ev_mod
-    from evolve import Job, RayEvaluator, SerialEvaluator, SkillSet, initialize
 
-    task = load_task("examples.toy_task", p_fail=0.2)
-    skills = SkillSet.from_task(task)
-    rng = np.random.default_rng(0)
-    jobs = [Job.of(initialize(skills, rng, 8), 0, (1, 0, i), 2) for i in range(64)]
-    sizes: list[int] = []
-    pack = ev_mod._pack
-
-    def counted(chunk: list[Job]) -> bytes:
-        sizes.append(len(chunk))
-        return pack(chunk)
-
-    monkeypatch.setattr(ev_mod, "_pack", counted)
-    evaluator = RayEvaluator(task, skills, workers=2)
-    try:
-        serial = SerialEvaluator(task, skills).evaluate(jobs)
-        assert evaluator.evaluate(jobs) == serial  # untimed: an eighth of a share at least
-        assert sum(sizes) == 64 and sizes[:2] == [16, 16]
-        sizes.clear()
-        assert evaluator.evaluate(jobs) == serial  # timed: 64 toy jobs are under 80 ms
-        assert sizes == [32, 32]
-        monkeypatch.setattr(ev_mod, "_MIN_CHUNK_S", 0.0)
-        sizes.clear()
-        assert evaluator.evaluate(jobs) == serial
-        assert sorted(sizes, reverse=True) == [16, 16, 8, 8, 4, 4, 2, 2, 2, 2]
-    finally:
-        evaluator.close()
-        if ray.is_initialized():
-            ray.shutdown()
+    evaluator, jobs, serial, sizes = counted
+    assert evaluator.evaluate(jobs) == serial  # untimed: an eighth of a share at least
+    assert sum(sizes) == 64 and sizes[:2] == [16, 16]
+    sizes.clear()
+    assert evaluator.evaluate(jobs) == serial  # timed: 64 toy jobs are under 80 ms
+    assert sizes == [32, 32]
+    monkeypatch.setattr(ev_mod, "_MIN_CHUNK_S", 0.0)
+    sizes.clear()
+    assert evaluator.evaluate(jobs) == serial
+    assert sorted(sizes, reverse=True) == [16, 16, 8, 8, 4, 4, 2, 2, 2, 2]
 
 
-def test_a_generation_given_as_it_is_bred_goes_out_as_it_comes(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
+def test_a_generation_given_as_it_is_bred_goes_out_as_it_comes(counted: _Counted) -> None:
     """Streaming: jobs handed over by a generator with their expected number reach the
     actors in chunks of a half share of the expected jobs per actor while the generator
     still runs (evolve() breeds that way), and the fitnesses are the serial ones; a list
     goes out by factoring, as before."""
-    ray = pytest.importorskip("ray")
-    import numpy as np
-
-    import evolve.evaluation as ev_mod
-    from evolve import Job, RayEvaluator, SerialEvaluator, SkillSet, initialize
-
-    task = load_task("examples.toy_task", p_fail=0.2)
-    skills = SkillSet.from_task(task)
-    rng = np.random.default_rng(0)
-    jobs = [Job.of(initialize(skills, rng, 8), 0, (1, 0, i), 2) for i in range(64)]
-    sizes: list[int] = []
-    pack = ev_mod._pack
-
-    def counted(chunk: list[Job]) -> bytes:
-        sizes.append(len(chunk))
-        return pack(chunk)
-
+    evaluator, jobs, serial, sizes = counted
     sent_before: list[int] = []  # chunks sent when each job was handed over
 
-    def bred() -> Iterator[Job]:
+    def bred() -> Iterator[Any]:
         for job in jobs:
             sent_before.append(len(sizes))
             yield job
 
-    monkeypatch.setattr(ev_mod, "_pack", counted)
-    evaluator = RayEvaluator(task, skills, workers=2)
-    try:
-        serial = SerialEvaluator(task, skills).evaluate(jobs)
-        assert evaluator.evaluate(bred(), expected=64) == serial
-        # a chunk of 8 sent as each 8 jobs come, until both actors hold two; what comes
-        # back meanwhile, and what is left at the end, depends on timing
-        assert sum(sizes) == 64 and sizes[:4] == [8] * 4
-        assert sent_before[:33] == [0] * 8 + [1] * 8 + [2] * 8 + [3] * 8 + [4]
-        sizes.clear()
-        assert evaluator.evaluate(jobs, expected=64) == serial  # whole: factoring
-        assert sizes == [32, 32]
-        assert evaluator.evaluate(iter(()), expected=64) == []  # a generation all cached
-        assert evaluator.evaluate(bred(), expected=100) == serial  # fewer than expected
+    assert evaluator.evaluate(bred(), expected=64) == serial
+    # a chunk of 8 sent as each 8 jobs come, until both actors hold two; what comes back
+    # meanwhile, and what is left at the end, depends on timing
+    assert sum(sizes) == 64 and sizes[:4] == [8] * 4
+    assert sent_before[:33] == [0] * 8 + [1] * 8 + [2] * 8 + [3] * 8 + [4]
+    sizes.clear()
+    assert evaluator.evaluate(jobs, expected=64) == serial  # whole: factoring
+    assert sizes == [32, 32]
+    assert evaluator.evaluate(iter(()), expected=64) == []  # a generation all cached
+    assert evaluator.evaluate(bred(), expected=100) == serial  # fewer than expected
 
+    def broken() -> Iterator[Any]:  # breeding raises half-way, chunks in flight
+        yield from jobs[::-1][:40]  # other jobs at those positions
+        raise RuntimeError("breeding failed")
 
-        def broken() -> Iterator[Job]:  # breeding raises half-way, chunks in flight
-            yield from jobs[::-1][:40]  # other jobs at those positions
-            raise RuntimeError("breeding failed")
-
-        with pytest.raises(RuntimeError, match="breeding failed"):
-            evaluator.evaluate(broken(), expected=64)
-        assert evaluator.evaluate(jobs) == serial  # nothing of the broken one mixed in
-        evaluator.groups = 2  # islands: the whole generation first
-        sent_before.clear()
-        sizes.clear()
-        assert evaluator.evaluate(bred(), expected=64) == serial
-        assert max(sent_before) == 0
-    finally:
-        evaluator.close()
-        if ray.is_initialized():
-            ray.shutdown()
+    with pytest.raises(RuntimeError, match="breeding failed"):
+        evaluator.evaluate(broken(), expected=64)
+    assert evaluator.evaluate(jobs) == serial  # nothing of the broken one mixed in
+    evaluator.groups = 2  # islands: the whole generation first
+    sent_before.clear()
+    sizes.clear()
+    assert evaluator.evaluate(bred(), expected=64) == serial
+    assert max(sent_before) == 0
