@@ -17,14 +17,13 @@ checkpoint holds that record under its checksum; ``run.json`` shows it to people
 
 from __future__ import annotations
 
-import importlib.machinery
 import json
 import os
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from skillcompose.origins import inside, module_origins
 from skillcompose.task import Task, load_task
 
 from .config import EvolutionConfig
@@ -140,33 +139,6 @@ def _short(v: Any) -> str:
     return text if len(text) <= 50 else text[:47] + "..."
 
 
-def _inside(path: Path, directory: Path) -> bool:
-    try:
-        path.resolve().relative_to(directory.resolve())
-        return True
-    except ValueError:
-        return False
-
-
-def _origins(module: str) -> list[Path]:
-    """Where importing ``module`` would read code from, found without running any."""
-    if module.endswith(".py") or "/" in module or "\\" in module:
-        return [Path(module)]
-    top = module.split(".")[0]
-    if top in sys.modules:  # imported already: nothing new is read from disk for its top
-        spec = getattr(sys.modules[top], "__spec__", None)
-    else:
-        path = [p or os.getcwd() for p in sys.path]
-        if os.getcwd() not in path:  # skillcompose's import adds the current directory
-            path.append(os.getcwd())
-        spec = importlib.machinery.PathFinder.find_spec(top, path)
-    if spec is None:
-        return []
-    places = [Path(spec.origin)] if spec.origin and spec.has_location else []
-    places += [Path(p) for p in (spec.submodule_search_locations or [])]
-    return places
-
-
 def load_recorded_task(record: Mapping[str, Any], run_dir: str | os.PathLike[str]) -> Task:
     """Import the recorded task module (never one inside ``run_dir``) and make the task
     with the recorded settings."""
@@ -177,8 +149,8 @@ def load_recorded_task(record: Mapping[str, Any], run_dir: str | os.PathLike[str
             f"{where}: the run's task was built in Python, not loaded from a module; resume "
             "it from Python: evolve(task, resume=...)"
         )
-    for origin in _origins(module):
-        if _inside(origin, where):
+    for origin in module_origins(module):
+        if inside(origin, where):
             raise CheckpointError(
                 f"{where}: the run's task module {module} would be imported from {origin}, "
                 "inside the run directory; code that came with a run directory is never run "

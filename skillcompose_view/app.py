@@ -15,18 +15,21 @@ or the terminal as a traceback.
 from __future__ import annotations
 
 import html
+import ipaddress
 import logging
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlencode
+from urllib.parse import urlencode, urlsplit
 
 from nicegui import app, ui
 from nicegui import run as background
+from starlette.requests import Request
 
 from skillcompose.errors import SkillcomposeError
+from skillcompose.origins import inside, is_file_target, module_origins
 from skillcompose.registry import Registry
 from skillcompose.task import load_task, parse_settings
 
@@ -142,6 +145,46 @@ def _task_registry(target: str | None, settings: Mapping[str, Any]) -> tuple[Reg
         return None, ""
     task = load_task(target, **dict(settings))
     return task.registry, f"task {task.name}"
+
+
+def request_refusal(headers: Mapping[str, str]) -> str | None:
+    """Why a page request may not have the viewer import a task it names (None: it may): it
+    came from another site's page (the browser says so in ``Sec-Fetch-Site``; any page
+    open in the person's browser can send a request to this machine), or it named a host
+    that is not an address (a name of someone else's that was made to point at this
+    machine)."""
+    if headers.get("sec-fetch-site", "") in ("cross-site", "same-site"):
+        return "the request came from another site's page"
+    host = urlsplit("//" + headers.get("host", "")).hostname or ""
+    if host != "localhost":
+        try:
+            ipaddress.ip_address(host)
+        except ValueError:
+            return f"the request named host {host!r}, not an address of this machine"
+    return None
+
+
+def task_refusal(config: ViewerConfig, target: str, request: str | None) -> str | None:
+    """Why the viewer will not import task module ``target`` (None: it may). The task given
+    on the command line always may. One named by a page's address or by a run's
+    ``run.json`` only as a module name (not a file), found outside the folder being viewed
+    (code that came with the runs viewed is never run), and only for a request of this
+    viewer's own pages or the person's (``request``: :func:`request_refusal`'s answer)."""
+    if config.task is not None and target == config.task:
+        return None
+    fix = f"give it on the command line: skillcompose view ... --task {target}"
+    if request is not None:
+        return f"task {target} not imported: {request}; open the page from the viewer, or {fix}"
+    if is_file_target(target):
+        return (f"task {target} not imported: the viewer imports a task file only when it is "
+                f"given on its command line; {fix}")
+    for origin in module_origins(target):
+        if inside(origin, config.root) or (
+                config.file is not None and inside(origin, config.file.parent)):
+            return (f"task {target} not imported: it would be imported from {origin}, inside "
+                    "the folder being viewed, and code that came with the runs viewed is "
+                    f"never run; check it, then {fix}")
+    return None
 
 
 def _task_of_run(path: Path) -> tuple[str | None, dict[str, Any]]:
@@ -310,7 +353,7 @@ def _graph_legend() -> None:
                 ui.label(text)
 
 
-def _fsa_page(config: ViewerConfig, path: str, task: str) -> None:
+def _fsa_page(config: ViewerConfig, path: str, task: str, request: str | None = None) -> None:
     _header("FSA")
     ui.add_head_html(_STYLE)
     files = fsa_files(config)
@@ -339,11 +382,15 @@ def _fsa_page(config: ViewerConfig, path: str, task: str) -> None:
         target, settings = (task or config.task), dict(config.settings)
         if not target:
             target, settings = _task_of_run(chosen)
-        try:
-            registry, what = _task_registry(target, settings)
-        except SkillcomposeError as exc:
-            registry, what = None, ""
-            ui.label(f"task {target}: {exc}").classes("text-orange-700")
+        refusal = task_refusal(config, target, request) if target else None
+        registry, what = None, ""
+        if refusal is not None:
+            ui.label(refusal).classes("text-orange-700").props("data-testid=task-refused")
+        else:
+            try:
+                registry, what = _task_registry(target, settings)
+            except SkillcomposeError as exc:
+                ui.label(f"task {target}: {exc}").classes("text-orange-700")
         view = read_fsa(chosen, registry, what)
         _fsa_body(view, _shown(config, view.path))
 
@@ -417,7 +464,7 @@ def _states_table(view: FSAView) -> None:
 # replay
 # ---------------------------------------------------------------------------------------
 async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str,
-                       backend: str) -> None:
+                       backend: str, request: str | None = None) -> None:
     _header("Replay")
     files = fsa_files(config)
     chosen = path or (str(files[0]) if files else "")
@@ -452,6 +499,10 @@ async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, se
         ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
                  "files there") \
             .classes("text-red-700").props("data-testid=error")
+        return
+    refusal = task_refusal(config, target, request)
+    if refusal is not None:
+        ui.label(refusal).classes("text-orange-700").props("data-testid=task-refused")
         return
 
     # The episode runs in a worker thread, so a long one does not stop the server answering
@@ -684,14 +735,15 @@ def build(config: ViewerConfig) -> None:
         _safe("runs", lambda: _runs_page(config))
 
     @ui.page("/fsa", title="skillcompose view: FSA")
-    def fsa_page(path: str = "", task: str = "") -> None:
-        _safe("FSA", lambda: _fsa_page(config, path, task))
+    def fsa_page(request: Request, path: str = "", task: str = "") -> None:
+        _safe("FSA", lambda: _fsa_page(config, path, task, request_refusal(request.headers)))
 
     @ui.page("/replay", title="skillcompose view: replay", response_timeout=REPLAY_TIMEOUT_S)
-    async def replay_page(path: str = "", task: str = "", seed: str = "0", settings: str = "",
-                          backend: str = "") -> None:
+    async def replay_page(request: Request, path: str = "", task: str = "", seed: str = "0",
+                          settings: str = "", backend: str = "") -> None:
         try:
-            await _replay_page(config, path, task, seed, settings, backend)
+            await _replay_page(config, path, task, seed, settings, backend,
+                               request_refusal(request.headers))
         except Exception as exc:  # as _safe: one line, never a traceback in the page
             failure = exc
             _safe("replay", lambda: _raise(failure))
