@@ -15,6 +15,14 @@ gets the umask's):
 - ``checkpoint.json`` everything needed to continue (:data:`CHECKPOINT_VERSION`): plain data
                      that cannot run code, with a SHA-256 checksum of its content.
 - ``.lock``          locked (``lockf``) by the one process evolving in the directory.
+- ``.written.json``  the SHA-256 of what the run last wrote to ``best.yaml`` and
+                     ``best_evolved.yaml``: a file that differs was edited by a person, and
+                     is kept (renamed ``best.edited.yaml``, ``best.edited-2.yaml``, ...)
+                     before the run writes its own.
+
+A new run (``--out``) refuses a directory that holds a run's files without a checkpoint
+(``run.json``, ``history.jsonl``, ``best.yaml``, ``best_evolved.yaml``): another run's, or
+a person's, which it would overwrite.
 
 A checkpoint is one header line, a JSON object
 ``{"format": "skillcompose evolve checkpoint", "version": 2, "sha256": HEX, "bytes": N}``,
@@ -28,11 +36,12 @@ import contextlib
 import hashlib
 import json
 import os
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from skillcompose import FSA, save_fsa
+from skillcompose import FSA, dumps_fsa
 from skillcompose.draw import render, to_dot
 from skillcompose.files import TEMPORARY_MARK, atomic_write, temporary_beside
 from skillcompose.registry import Registry
@@ -71,7 +80,10 @@ class RunDir:
         self.checkpoint = self.path / "checkpoint.json"
         self.old_checkpoint = self.path / "checkpoint.pkl"
         self.lock_file = self.path / ".lock"
+        self.written_json = self.path / ".written.json"
         self._lock: IO[str] | None = None
+        self._written: dict[str, list[str]] | None = None
+        self.kept: list[tuple[Path, Path]] = []  # edited files kept: (file, kept as)
 
     # -- one process at a time -------------------------------------------------------------
     def lock(self) -> None:
@@ -118,12 +130,25 @@ class RunDir:
 
     # -- files -----------------------------------------------------------------------------
     def create(self, run_info: Mapping[str, Any]) -> None:
-        self.lock()
-        for cp in (self.checkpoint, self.old_checkpoint):
-            if cp.exists():
+        """Start a new run here (locked), refusing a directory that holds a run: one with
+        its checkpoint, or a run's files without one (another run's, or a person's, which
+        the new run would overwrite); nothing is written then."""
+        for locked in (False, True):  # looked at before taking the lock too: nothing made
+            if locked:
+                self.lock()
+            for cp in (self.checkpoint, self.old_checkpoint):
+                if cp.exists():
+                    raise CheckpointError(
+                        f"{self.path} holds a run already ({cp.name}); continue it with "
+                        f"--resume {self.path}, or choose another --out directory"
+                    )
+            held = [p.name for p in (self.run_json, self.history, self.best_yaml,
+                                     self.best_evolved_yaml) if os.path.lexists(p)]
+            if held:
                 raise CheckpointError(
-                    f"{self.path} holds a run already ({cp.name}); continue it with "
-                    f"--resume {self.path}, or choose another --out directory"
+                    f"{self.path} holds {', '.join(held)} but no checkpoint: another run's "
+                    "files or yours, which a new run would overwrite; choose another --out "
+                    "directory, or move them away"
                 )
         self.write_run_info(run_info)
         _atomic_write(self.history, b"")
@@ -148,8 +173,66 @@ class RunDir:
     def write_best(
         self, fsa: FSA, registry: Registry, header: str, path: Path | None = None
     ) -> None:
-        save_fsa(fsa, path or self.best_yaml, registry, header=header)
+        self.write_editable(path or self.best_yaml,
+                            dumps_fsa(fsa, registry, header=header).encode("utf-8"))
         _atomic_write(self.best_dot, to_dot(fsa).encode())
+
+    # -- files a person may edit -----------------------------------------------------------
+    def _written_map(self) -> dict[str, list[str]]:
+        """Per file name, the SHA-256 of what this run last wrote there (the one before it
+        too: a run killed between recording and writing leaves either on disk)."""
+        if self._written is None:
+            self._written = {}
+            try:
+                data = json.loads(self.written_json.read_text(encoding="utf-8"))
+            except (OSError, ValueError, RecursionError):
+                data = {}
+            if isinstance(data, dict):
+                self._written = {str(k): [h for h in v if isinstance(h, str)]
+                                 for k, v in data.items() if isinstance(v, list)}
+        return self._written
+
+    def keep_edits(self, path: Path) -> Path | None:
+        """If ``path`` holds what this run did not write there (a person edited it), rename
+        it to a free ``NAME.edited[-K].yaml`` beside it, say so on standard error and
+        return where it went; else None."""
+        try:
+            if not path.is_file():  # absent, or not a file: writing says what is wrong
+                return None
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        except OSError:
+            return None
+        if digest in self._written_map().get(path.name, []):
+            return None
+        stem = path.name.removesuffix(".yaml")
+        for k in range(1, 10_000):
+            aside = path.with_name(f"{stem}.edited{'' if k == 1 else f'-{k}'}.yaml")
+            try:
+                os.link(path, aside)  # never over an existing file
+            except FileExistsError:
+                continue
+            except OSError:  # no hard links here: rename, having checked the name is free
+                if os.path.lexists(aside):
+                    continue
+                os.rename(path, aside)
+            else:
+                os.unlink(path)
+            self.kept.append((path, aside))
+            print(f"{path} was edited since this run wrote it: kept as {aside.name}, and "
+                  f"the run writes its own {path.name}", file=sys.stderr)
+            return aside
+        raise CheckpointError(f"{path} was edited, and no free name is left beside it to "
+                              "keep it under; move the .edited files away")
+
+    def write_editable(self, path: Path, data: bytes) -> None:
+        """Write ``data`` to ``path`` (atomically, keeping its mode), having kept a person's
+        edits of it (:meth:`keep_edits`)."""
+        self.keep_edits(path)
+        written = self._written_map()
+        written[path.name] = [*written.get(path.name, [])[-1:],
+                              hashlib.sha256(data).hexdigest()]
+        _atomic_write(self.written_json, (json.dumps(written, indent=1) + "\n").encode())
+        atomic_write(path, data)
 
     # -- checkpoints -----------------------------------------------------------------------
     def save_checkpoint(self, state: Mapping[str, Any]) -> None:

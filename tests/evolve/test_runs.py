@@ -92,6 +92,64 @@ def test_extending_a_run_equals_an_uninterrupted_run(tmp_path: Path) -> None:
         "generations"] == 10
 
 
+def test_a_best_yaml_edited_by_a_person_is_kept_when_the_run_writes_again(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Extending a run whose best.yaml a person edited (as the README suggests) keeps the
+    edit, renamed beside it, says so in one line, and writes the run's own; files the run
+    wrote itself are simply replaced, a killed run's included."""
+    d = tmp_path / "run"
+    assert skillcompose_main(["evolve", *TOY, *SMALL, "--generations", "2", "--out", str(d)]) == 0
+    edited = (d / "best.yaml").read_text() + "# my notes: route failure back to retry\n"
+    (d / "best.yaml").write_text(edited)
+    capsys.readouterr()
+    assert skillcompose_main(["evolve", "--resume", str(d), "--quiet", "--generations", "4"]) == 0
+    err = capsys.readouterr().err
+    kept = [line for line in err.splitlines() if "edited" in line]
+    assert kept == [f"{d / 'best.yaml'} was edited since this run wrote it: kept as "
+                    "best.edited.yaml, and the run writes its own best.yaml"]
+    assert (d / "best.edited.yaml").read_text() == edited
+    assert "my notes" not in (d / "best.yaml").read_text()
+    load_fsa(d / "best.yaml")
+    # edited again, and extended again: a second name, the first kept as it was
+    (d / "best.yaml").write_text(edited)
+    assert skillcompose_main(["evolve", "--resume", str(d), "--quiet", "--generations", "5"]) == 0
+    assert (d / "best.edited-2.yaml").read_text() == edited
+    assert (d / "best.edited.yaml").read_text() == edited
+    # not edited: replaced, nothing kept
+    capsys.readouterr()
+    assert skillcompose_main(["evolve", "--resume", str(d), "--quiet", "--generations", "6"]) == 0
+    assert "was edited" not in capsys.readouterr().err
+    assert sorted(p.name for p in d.glob("*.edited*")) == ["best.edited-2.yaml",
+                                                           "best.edited.yaml"]
+
+
+def test_a_new_run_refuses_a_folder_holding_run_files_without_a_checkpoint(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out`` into a folder holding a person's best.yaml (their seed FSA, say) or the
+    files of a run without its checkpoint: refused before anything is written."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    seed = ROOT / "tests" / "evolve" / "data" / "toy_solution.yaml"
+    text = seed.read_text() + "# hand-written\n"
+    (mine / "best.yaml").write_text(text)
+    capsys.readouterr()
+    code = skillcompose_main(["evolve", *TOY, *SMALL, "--generations", "1", "--seed-fsa",
+                              str(mine / "best.yaml"), "--out", str(mine)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "holds best.yaml but no checkpoint" in err and "another --out" in err
+    assert (mine / "best.yaml").read_text() == text
+    assert [p.name for p in mine.iterdir()] == ["best.yaml"]  # nothing written there
+    with pytest.raises(CheckpointError, match=r"holds run\.json, history\.jsonl but no"):
+        (tmp_path / "torn").mkdir()
+        (tmp_path / "torn" / "run.json").write_text("{}")
+        (tmp_path / "torn" / "history.jsonl").write_text("")
+        evolve(_task(), CFG, seed=4, out_dir=tmp_path / "torn")
+    assert (tmp_path / "torn" / "run.json").read_text() == "{}"
+
+
 def test_resume_refuses_settings_that_change_the_run(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
