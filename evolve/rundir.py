@@ -43,7 +43,7 @@ from typing import IO, Any
 
 from skillcompose import FSA, dumps_fsa
 from skillcompose.draw import render, to_dot
-from skillcompose.files import TEMPORARY_MARK, atomic_write, temporary_beside
+from skillcompose.files import TEMPORARY_MARK, atomic_write, read_limited, temporary_beside
 from skillcompose.registry import Registry
 
 from .errors import CheckpointError
@@ -56,6 +56,11 @@ except ImportError:  # pragma: no cover - platforms without flock: no lock
 __all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "RunDir", "draw_fsa",
            "plot_history"]
 
+MAX_CHECKPOINT_BYTES = 2 << 30
+"""The largest checkpoint read (a run's state, its cache included, is far smaller)."""
+MAX_RUN_JSON_BYTES = 16 << 20
+"""The largest ``run.json`` read."""
+
 CHECKPOINT_FORMAT = "skillcompose evolve checkpoint"
 CHECKPOINT_VERSION = 2  # 1 was a pickle, which is never loaded (it could run code)
 _HEADER_MAX = 1024
@@ -63,6 +68,19 @@ _HEADER_MAX = 1024
 
 def _atomic_write(path: Path, data: bytes) -> None:
     atomic_write(path, data, sync=True)
+
+
+def _read(path: Path, limit: int, fix: str) -> bytes:
+    """A run file's bytes, or one line saying why not: missing, not a regular file (a pipe
+    would wait for ever, a device never end), larger than ``limit``."""
+    try:
+        data = read_limited(path, limit)
+    except OSError as exc:
+        raise CheckpointError(f"{path} cannot be read: {exc.strerror or exc}; {fix}") from None
+    if len(data) > limit:
+        raise CheckpointError(f"{path} is larger than {limit >> 20} MiB, more than any run "
+                              f"writes there; {fix}")
+    return data
 
 
 class RunDir:
@@ -184,7 +202,7 @@ class RunDir:
         if self._written is None:
             self._written = {}
             try:
-                data = json.loads(self.written_json.read_text(encoding="utf-8"))
+                data = json.loads(read_limited(self.written_json, 1 << 20).decode("utf-8"))
             except (OSError, ValueError, RecursionError):
                 data = {}
             if isinstance(data, dict):
@@ -199,7 +217,7 @@ class RunDir:
         try:
             if not path.is_file():  # absent, or not a file: writing says what is wrong
                 return None
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+            digest = hashlib.sha256(read_limited(path, 16 << 20)).hexdigest()
         except OSError:
             return None
         if digest in self._written_map().get(path.name, []):
@@ -260,10 +278,7 @@ class RunDir:
                 f"{self.path} has no checkpoint.json to resume from; a run writes one as it "
                 "starts and every checkpoint_every generations (start it with --out DIR)"
             )
-        try:
-            data = cp.read_bytes()
-        except OSError as exc:
-            raise CheckpointError(f"{cp} cannot be read: {exc.strerror}") from None
+        data = _read(cp, MAX_CHECKPOINT_BYTES, "restore it from a copy or start afresh")
         return self.parse_checkpoint(data)
 
     def parse_checkpoint(self, data: bytes) -> dict[str, Any]:
@@ -303,10 +318,9 @@ class RunDir:
         return state
 
     def load_run_info(self) -> dict[str, Any]:
+        data = _read(self.run_json, MAX_RUN_JSON_BYTES, "restore it from a copy")
         try:
-            info = json.loads(self.run_json.read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise CheckpointError(f"{self.run_json} cannot be read: {exc.strerror}") from None
+            info = json.loads(data.decode("utf-8"))
         except (ValueError, RecursionError) as exc:
             raise CheckpointError(f"{self.run_json} is not valid JSON: {exc}") from None
         if not isinstance(info, dict):

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["TEMPORARY_MARK", "atomic_write", "file_mode", "temporary_beside", "umask"]
+__all__ = ["TEMPORARY_MARK", "NotARegularFile", "atomic_write", "file_mode", "read_limited",
+           "temporary_beside", "umask"]
 
 TEMPORARY_MARK = ".tmp-"
 """Temporary files are named ``.NAME.tmp-XXXXXXXX[SUFFIX]`` beside ``NAME``: a run killed
@@ -68,3 +70,34 @@ def atomic_write(path: str | os.PathLike[str], data: bytes, *, sync: bool = Fals
         if sync:
             f.flush()
             os.fsync(f.fileno())
+
+
+class NotARegularFile(OSError):
+    """A path that is a pipe, a device, a socket or a folder where a file was expected:
+    reading it could wait for ever or never end."""
+
+
+def read_limited(path: str | os.PathLike[str], limit: int) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit + 1`` of them (more than
+    ``limit`` means the file is larger): never blocks on a pipe (opened without waiting for
+    a writer, and refused with :class:`NotARegularFile`, as are devices and folders), never
+    reads a file whole however large it is. Other failures raise :class:`OSError`."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            kind = ("a folder" if stat.S_ISDIR(mode) else "a pipe" if stat.S_ISFIFO(mode)
+                    else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+                    else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+            raise NotARegularFile(0, f"it is {kind}, not a regular file", str(path))
+        chunks: list[bytes] = []
+        left = limit + 1
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)

@@ -29,6 +29,7 @@ from nicegui import run as background
 from starlette.requests import Request
 
 from skillcompose.errors import SkillcomposeError
+from skillcompose.files import read_limited
 from skillcompose.origins import inside, is_file_target, module_origins
 from skillcompose.registry import Registry
 from skillcompose.task import load_task, parse_settings
@@ -196,7 +197,7 @@ def _task_of_run(path: Path) -> tuple[str | None, dict[str, Any]]:
     import json
 
     try:
-        info = json.loads((path.parent / "run.json").read_text(encoding="utf-8"))
+        info = json.loads(read_limited(path.parent / "run.json", 16 << 20))
         settings = info.get("task_settings") or {}
     except (OSError, ValueError):
         settings = {}

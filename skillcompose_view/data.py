@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from skillcompose.errors import FSAValidationError, Problem, SkillcomposeError
+from skillcompose.files import read_limited
 from skillcompose.fsa import FSA
 from skillcompose.fsafile import MAX_FILE_BYTES, load_fsa
 from skillcompose.graph import trap_states
@@ -30,6 +31,7 @@ __all__ = [
 MAX_RUNS = 200  # run directories listed under one folder
 MAX_DEPTH = 4  # how deep below the folder run directories are looked for
 MAX_HISTORY_BYTES = 64 * 1024 * 1024
+MAX_RUN_JSON_BYTES = 16 * 1024 * 1024
 
 
 # ---------------------------------------------------------------------------------------
@@ -57,8 +59,7 @@ def read_history(path: Path) -> list[dict[str, Any]]:
     """The generations of ``history.jsonl`` that are complete JSON objects, in order (a line
     being written, or a damaged one, is skipped); [] when the file is missing."""
     try:
-        with path.open("rb") as f:
-            data = f.read(MAX_HISTORY_BYTES)
+        data = read_limited(path, MAX_HISTORY_BYTES)[:MAX_HISTORY_BYTES]
     except OSError:
         return []
     records = []
@@ -158,7 +159,12 @@ def read_run(run_dir: Path, root: Path) -> RunSummary | None:
     problem = ""
     info: dict[str, Any] = {}
     try:
-        text = (run_dir / "run.json").read_text(encoding="utf-8")
+        data = read_limited(run_dir / "run.json", MAX_RUN_JSON_BYTES)
+        if len(data) > MAX_RUN_JSON_BYTES:
+            raise OSError(0, f"larger than {MAX_RUN_JSON_BYTES >> 20} MiB")
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        text = "not UTF-8"  # reported below as not JSON
     except FileNotFoundError:
         if not run_dir.exists():
             return None
@@ -284,8 +290,7 @@ def read_fsa(path: Path, registry: Registry | None = None, what: str = "") -> FS
     """Read the FSA file at ``path`` for display; problems (with their lines) instead of an
     exception. With a registry the FSA is also checked against its skills."""
     try:
-        with path.open("rb") as f:
-            text = f.read(MAX_FILE_BYTES).decode("utf-8", "replace")
+        text = read_limited(path, MAX_FILE_BYTES)[:MAX_FILE_BYTES].decode("utf-8", "replace")
     except OSError as exc:
         msg = "file not found" if isinstance(exc, FileNotFoundError) else \
             f"cannot read the file: {exc.strerror or exc}"

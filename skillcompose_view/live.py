@@ -29,7 +29,7 @@ from typing import Any
 
 from skillcompose import Blackboard
 from skillcompose.executor import FSARun
-from skillcompose.files import atomic_write
+from skillcompose.files import atomic_write, read_limited
 from skillcompose.fsa import FSA
 from skillcompose.fsafile import dumps_fsa
 
@@ -109,9 +109,7 @@ class LivePublisher:
 def read_live(path: Path) -> dict[str, Any] | None:
     """A live file's record, or None when it is missing, being replaced or not one."""
     try:
-        with path.open("rb") as f:
-            data = f.read(MAX_LIVE_BYTES)
-        record = json.loads(data)
+        record = json.loads(read_limited(path, MAX_LIVE_BYTES)[:MAX_LIVE_BYTES])
     except (OSError, ValueError, RecursionError):
         return None
     if not isinstance(record, dict) or record.get("format") != LIVE_FORMAT:

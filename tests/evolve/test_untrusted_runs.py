@@ -5,7 +5,9 @@ one line."""
 from __future__ import annotations
 
 import json
+import os
 import pickle
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -162,6 +164,36 @@ def test_a_malformed_run_json_gives_one_line(
     for text in ("{not json", "[1, 2]", '{"task": 1}'):
         (run_dir / "run.json").write_text(text)
         _one_line_error(*_resume(run_dir, capsys))
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_run_files_that_are_pipes_devices_or_huge_give_one_line(
+    run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A checkpoint or run.json that is a pipe (reading it would wait for ever), a device
+    (it would never end) or a file larger than any run writes: refused at once, in one
+    line, without reading it whole."""
+    signal.alarm(60)  # a regression would hang here: fail instead
+    try:
+        saved = {n: (run_dir / n).read_bytes() for n in ("checkpoint.json", "run.json")}
+        for name in saved:
+            (run_dir / name).unlink()
+            os.mkfifo(run_dir / name)
+            err = _one_line_error(*_resume(run_dir, capsys))
+            assert f"{name} cannot be read: it is a pipe, not a regular file" in err, err
+            (run_dir / name).unlink()
+            (run_dir / name).symlink_to("/dev/zero")
+            err = _one_line_error(*_resume(run_dir, capsys))
+            assert "it is a device, not a regular file" in err, err
+            (run_dir / name).unlink()
+            with (run_dir / name).open("wb") as f:  # sparse: no disk spent
+                f.truncate((3 << 30) if name == "checkpoint.json" else (32 << 20))
+            err = _one_line_error(*_resume(run_dir, capsys))
+            assert "more than any run writes there" in err, err
+            (run_dir / name).write_bytes(saved[name])
+        assert _resume(run_dir, capsys)[0] == 0  # put back: it resumes
+    finally:
+        signal.alarm(0)
 
 
 def test_every_single_bit_flip_is_detected(run_dir: Path) -> None:

@@ -17,7 +17,7 @@ from evolve.rundir import RunDir
 from examples import live_patrol
 from skillcompose import FSA, load_fsa
 from skillcompose.cli import main
-from skillcompose_view.data import find_runs, mermaid, read_fsa, read_history
+from skillcompose_view.data import find_runs, mermaid, read_fsa, read_history, read_run
 from skillcompose_view.episode import run_episode
 from skillcompose_view.live import LivePublisher, read_live
 
@@ -179,3 +179,31 @@ def test_a_run_whose_process_id_was_reused_is_not_running(tmp_path: Path) -> Non
     finally:
         held.unlock()
     assert [r.status for r in find_runs(tmp_path)] == ["interrupted"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_pipes_in_the_folder_viewed_never_hang_the_viewer(tmp_path: Path) -> None:
+    """A run.json, history.jsonl, FSA file or live file that is a named pipe (reading it
+    would wait for a writer for ever) is reported as unreadable at once."""
+    import signal
+
+    from skillcompose_view.live import read_live
+
+    run = tmp_path / "odd"
+    run.mkdir()
+    for name in ("run.json", "history.jsonl", "best.yaml", "patrol.live.json"):
+        os.mkfifo(run / name)
+    signal.alarm(30)  # a regression would hang here: fail instead
+    try:
+        assert find_runs(tmp_path) == []  # a run.json that is no file makes no run
+        summary = read_run(run, tmp_path)
+        assert summary is not None and summary.status == "unreadable"
+        assert summary.problem == "run.json cannot be read: it is a pipe, not a regular file"
+        assert read_history(run / "history.jsonl") == []
+        view = read_fsa(run / "best.yaml")
+        assert view.fsa is None
+        assert [p.message for p in view.problems] == [
+            "cannot read the file: it is a pipe, not a regular file"]
+        assert read_live(run / "patrol.live.json") is None
+    finally:
+        signal.alarm(0)
