@@ -168,6 +168,23 @@ def _whole(x: Any) -> int:
     return x
 
 
+def _generation_record(r: Any) -> GenerationRecord:
+    """A checkpoint's history entry, checked field by field."""
+    if not isinstance(r, dict):
+        raise TypeError(f"a history entry is {type(r).__name__}, not an object")
+    faults = r.get("faults", {})
+    if not isinstance(faults, dict) or not all(
+            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool)
+            for k, v in faults.items()):
+        raise TypeError("a history entry's faults are not counts")
+    record = GenerationRecord(**r)
+    for name in ("generation", "best_size", "evaluations", "total_evaluations"):
+        _whole(getattr(record, name))
+    for name in ("best", "mean", "median", "evals_per_s", "wall_time"):
+        _number(getattr(record, name))
+    return record
+
+
 class _Run:
     """The state of one run; everything in :meth:`state` goes into a checkpoint."""
 
@@ -251,11 +268,14 @@ class _Run:
                 fitness = [_number(f) for f in fitness]
                 if len(fitness) != len(self.population):
                     raise ValueError("fitness")
-            self.rng.bit_generator.state = st["rng"]
+            rng = st["rng"]
+            if not isinstance(rng, dict) or rng.get("bit_generator") != "PCG64":
+                raise ValueError("rng is not a PCG64 generator's state")
+            self.rng.bit_generator.state = rng
             best = st["best"]
             self.best = None if best is None else (
                 self._genome(best[0]), _number(best[1]), _whole(best[2]))
-            self.history = [GenerationRecord(**r) for r in st["history"]]
+            self.history = [_generation_record(r) for r in st["history"]]
             self.cache = {
                 _tuples(k): (_number(total), _whole(count)) for k, total, count in st["cache"]
             }
@@ -276,7 +296,7 @@ class _Run:
             self.fault_totals = self.faults()  # checks each generation's fault counts
         except CheckpointError:
             raise
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError,
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError,
                 RecursionError) as exc:
             raise CheckpointError(
                 f"{where} is malformed ({type(exc).__name__}: {exc}); restore it from a copy "
@@ -1021,7 +1041,7 @@ def _evolve(
     if checkpoint is not None:
         assert rundir is not None
         fitness = run.restore(checkpoint, str(rundir.checkpoint))
-        if fitness is None and cfg.generations < run.generation:
+        if cfg.generations < run.generation:  # finished or not: a budget cannot shrink
             raise CheckpointError(
                 f"{rundir.path} has reached generation {run.generation} already; give "
                 f"--generations {run.generation} or more"

@@ -7,12 +7,18 @@ directories and checkpoints as it is and a resumed run checks it has the same on
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
 from .errors import EvolutionConfigError
 
-__all__ = ["PRESETS", "TOPOLOGIES", "EvolutionConfig"]
+__all__ = ["MOST_TRIALS", "PRESETS", "TOPOLOGIES", "EvolutionConfig"]
+
+MOST_TRIALS = 1_000_000
+"""The most episodes one evaluation, confirmation or check may run (as the command line
+allows): far beyond any real run, and a bound on what a checkpoint from elsewhere asks."""
+_MOST = 10**9  # generations, intervals, jobs: bounded, far beyond any real run
 
 TOPOLOGIES = ("ring", "complete")
 
@@ -154,29 +160,30 @@ class EvolutionConfig:
     def __post_init__(self) -> None:
         problems: list[str] = []
 
-        def whole(name: str, low: int) -> None:
+        def whole(name: str, low: int, high: int = _MOST) -> None:
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                problems.append(f"{name} = {v!r}: expected a whole number >= {low}")
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+                problems.append(f"{name} = {v!r}: expected a whole number from {low} to "
+                                f"{high:,}")
 
         def prob(name: str) -> None:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
                 problems.append(f"{name} = {v!r}: expected a probability in [0, 1]")
 
-        whole("population", 2)
-        whole("initial_nodes", 1)
-        whole("tournament", 1)
+        whole("population", 2, 10**6)
+        whole("initial_nodes", 1, 10_000)
+        whole("tournament", 1, 10**6)
         whole("generations", 0)
-        whole("elitism", 0)
-        whole("cache_refresh", 0)
-        whole("confirm_trials", 0)
-        whole("confirm_candidates", 0)
+        whole("elitism", 0, 10**6)
+        whole("cache_refresh", 0, MOST_TRIALS)
+        whole("confirm_trials", 0, MOST_TRIALS)
+        whole("confirm_candidates", 0, 10_000)
         whole("checkpoint_every", 1)
         whole("chunks_per_worker", 1)
-        whole("islands", 1)
+        whole("islands", 1, 10_000)
         whole("migration_interval", 1)
-        whole("migrants", 0)
+        whole("migrants", 0, 10**6)
         whole("restart_after", 0)
         if self.topology not in TOPOLOGIES:
             problems.append(f"topology = {self.topology!r}: choose one of "
@@ -187,23 +194,24 @@ class EvolutionConfig:
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
             prob(name)
         if self.trials is not None:
-            whole("trials", 1)
-        if not isinstance(self.param_sigma, (int, float)) or self.param_sigma < 0:
-            problems.append(f"param_sigma = {self.param_sigma!r}: expected a number >= 0")
-        if not isinstance(self.terminal_weight, (int, float)) or self.terminal_weight < 0:
-            problems.append(
-                f"terminal_weight = {self.terminal_weight!r}: expected a number >= 0"
-            )
+            whole("trials", 1, MOST_TRIALS)
+        for name in ("param_sigma", "terminal_weight"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or \
+                    not 0 <= v < math.inf:
+                problems.append(f"{name} = {v!r}: expected a finite number >= 0")
         limit = self.eval_time_limit
         if limit is not None and (
-            isinstance(limit, bool) or not isinstance(limit, (int, float)) or not limit > 0
+            isinstance(limit, bool) or not isinstance(limit, (int, float))
+            or not 0 < limit < math.inf
         ):
             problems.append(
                 f"eval_time_limit = {limit!r}: expected seconds > 0, or None for no limit"
             )
         whole("worker_max_jobs", 0)
         growth = self.worker_max_growth_mb
-        if isinstance(growth, bool) or not isinstance(growth, (int, float)) or growth < 0:
+        if isinstance(growth, bool) or not isinstance(growth, (int, float)) or \
+                not 0 <= growth < math.inf:
             problems.append(
                 f"worker_max_growth_mb = {growth!r}: expected MB >= 0 (0: no limit)"
             )

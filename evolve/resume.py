@@ -26,7 +26,7 @@ from typing import Any
 from skillcompose.origins import inside, module_origins
 from skillcompose.task import Task, load_task
 
-from .config import EvolutionConfig
+from .config import MOST_TRIALS, EvolutionConfig
 from .errors import CheckpointError, EvolutionError
 
 __all__ = [
@@ -109,12 +109,10 @@ def check_record(record: Any, where: str) -> dict[str, Any]:
         raise _fail(where, "seed", seed, "a whole number >= 0")
     if not isinstance(record["simplify"], bool):
         raise _fail(where, "simplify", record["simplify"], "true or false")
-    st = record["simplify_trials"]
-    if isinstance(st, bool) or not isinstance(st, int) or st < 1:
-        raise _fail(where, "simplify_trials", st, "a whole number >= 1")
-    ct = record["check_trials"]
-    if isinstance(ct, bool) or not isinstance(ct, int) or ct < 0:
-        raise _fail(where, "check_trials", ct, "a whole number >= 0")
+    for key, low in (("simplify_trials", 1), ("check_trials", 0)):
+        v = record[key]
+        if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= MOST_TRIALS:
+            raise _fail(where, key, v, f"a whole number from {low} to {MOST_TRIALS:,}")
     if not isinstance(record["config"], dict):
         raise _fail(where, "config", record["config"], "an object of evolution settings")
     try:

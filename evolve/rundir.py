@@ -43,7 +43,13 @@ from typing import IO, Any
 
 from skillcompose import FSA, dumps_fsa
 from skillcompose.draw import render, to_dot
-from skillcompose.files import TEMPORARY_MARK, atomic_write, read_limited, temporary_beside
+from skillcompose.files import (
+    TEMPORARY_MARK,
+    atomic_write,
+    not_a_file,
+    read_limited,
+    temporary_beside,
+)
 from skillcompose.registry import Registry
 
 from .errors import CheckpointError
@@ -131,6 +137,16 @@ class RunDir:
         f.flush()
         self._lock = f
         self.remove_temporary()
+        for p in (self.best_yaml, self.best_evolved_yaml, self.best_dot, self.best_png,
+                  self.history, self.fitness_png, self.run_json, self.checkpoint,
+                  self.written_json):
+            kind = not_a_file(p)
+            if kind is not None:
+                self.unlock()
+                raise CheckpointError(
+                    f"{p} is {kind}, where the run keeps a file; remove or rename it, then "
+                    "run again"
+                )
 
     def unlock(self) -> None:
         if self._lock is not None:

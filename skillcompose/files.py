@@ -15,8 +15,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["TEMPORARY_MARK", "NotARegularFile", "atomic_write", "file_mode", "read_limited",
-           "temporary_beside", "umask"]
+__all__ = ["TEMPORARY_MARK", "NotARegularFile", "atomic_write", "file_mode", "not_a_file",
+           "read_limited", "temporary_beside", "umask"]
 
 TEMPORARY_MARK = ".tmp-"
 """Temporary files are named ``.NAME.tmp-XXXXXXXX[SUFFIX]`` beside ``NAME``: a run killed
@@ -86,10 +86,7 @@ def read_limited(path: str | os.PathLike[str], limit: int) -> bytes:
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            kind = ("a folder" if stat.S_ISDIR(mode) else "a pipe" if stat.S_ISFIFO(mode)
-                    else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
-                    else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
-            raise NotARegularFile(0, f"it is {kind}, not a regular file", str(path))
+            raise NotARegularFile(0, f"it is {_kind(mode)}, not a regular file", str(path))
         chunks: list[bytes] = []
         left = limit + 1
         while left > 0:
@@ -101,3 +98,22 @@ def read_limited(path: str | os.PathLike[str], limit: int) -> bytes:
         return b"".join(chunks)
     finally:
         os.close(fd)
+
+
+def _kind(mode: int) -> str:
+    return ("a folder" if stat.S_ISDIR(mode) else "a pipe" if stat.S_ISFIFO(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+
+
+def not_a_file(path: str | os.PathLike[str]) -> str | None:
+    """What ``path`` is when it is there but is not a regular file (links followed): "a
+    folder", "a pipe", "a device", "a socket", "a broken link"; None when it is a regular
+    file or is not there."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return "a broken link" if os.path.islink(path) else None
+    except OSError:
+        return None
+    return None if stat.S_ISREG(mode) else _kind(mode)

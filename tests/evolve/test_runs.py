@@ -66,6 +66,12 @@ def test_resume_of_a_finished_run_changes_nothing(
     assert "finished in generation 3" in out and "nothing was changed" in out
     assert "--generations 6" in out  # how to extend it
     assert _files(d) == before  # the hand edit survives; no generation evaluated again
+    # a budget below what the run has done is refused, finished or not
+    assert skillcompose_main(["evolve", "--resume", str(d), "--quiet",
+                              "--generations", "1"]) == 2
+    assert "has reached generation 3 already; give --generations 3 or more" in \
+        capsys.readouterr().err
+    assert _files(d) == before
 
 
 # -- 2: extending a run ----------------------------------------------------------------------

@@ -144,6 +144,18 @@ def test_an_edited_run_json_does_not_resume_as_another_task(
     (lambda st: st.update(cache=[[["a"], 1, 1]]), "malformed"),
     (lambda st: st["population"][0].__setitem__(0, _deep(900)), "malformed"),
     (lambda st: st["run"]["task_settings"].update(p_fail=_deep(900)), "task_settings ="),
+    # values far past any run's, which would make the resume run for ever or fail inside
+    (lambda st: st["run"].update(check_trials=10**30), "check_trials = 10000000000000"),
+    (lambda st: st["run"].update(simplify_trials=10**30), "simplify_trials ="),
+    (lambda st: st["run"]["config"].update(trials=10**30), "trials = 1000000000000"),
+    (lambda st: st["run"]["config"].update(tournament=10**30), "tournament = 10000000"),
+    (lambda st: st["run"]["config"].update(terminal_weight=float("inf")),
+     "terminal_weight = inf: expected a finite number"),
+    (lambda st: st["rng"]["state"].update(state=-1), "malformed (OverflowError"),
+    (lambda st: st["rng"].update(has_uint32="x"), "malformed"),
+    (lambda st: st["history"][0].update(best={}), "malformed"),
+    (lambda st: st["history"][0].update(generation=-5), "malformed"),
+    (lambda st: st["history"].append(7), "malformed"),
 ])
 def test_malformed_values_give_one_line(
     run_dir: Path, capsys: pytest.CaptureFixture[str], edit: Any, expected: str
@@ -179,12 +191,14 @@ def test_run_files_that_are_pipes_devices_or_huge_give_one_line(
         for name in saved:
             (run_dir / name).unlink()
             os.mkfifo(run_dir / name)
-            err = _one_line_error(*_resume(run_dir, capsys))
-            assert f"{name} cannot be read: it is a pipe, not a regular file" in err, err
+            err = _one_line_error(*_resume(run_dir, capsys))  # read first, or locked first
+            assert f"{name} cannot be read: it is a pipe, not a regular file" in err or \
+                f"{name} is a pipe, where the run keeps a file; remove or rename" in err, err
             (run_dir / name).unlink()
             (run_dir / name).symlink_to("/dev/zero")
             err = _one_line_error(*_resume(run_dir, capsys))
-            assert "it is a device, not a regular file" in err, err
+            assert f"{name} cannot be read: it is a device, not a regular file" in err or \
+                f"{name} is a device, where the run keeps a file" in err, err
             (run_dir / name).unlink()
             with (run_dir / name).open("wb") as f:  # sparse: no disk spent
                 f.truncate((3 << 30) if name == "checkpoint.json" else (32 << 20))
@@ -194,6 +208,26 @@ def test_run_files_that_are_pipes_devices_or_huge_give_one_line(
         assert _resume(run_dir, capsys)[0] == 0  # put back: it resumes
     finally:
         signal.alarm(0)
+
+
+def test_a_folder_where_a_run_file_goes_is_refused_before_any_work(
+    run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for name in ("history.jsonl", "best.yaml", "best.png", "fitness.png"):
+        saved = run_dir / name
+        kept = run_dir.parent / f"kept-{name}"
+        if saved.exists():
+            saved.rename(kept)
+        saved.mkdir()
+        err = _one_line_error(*_resume(run_dir, capsys))
+        assert f"{saved} is a folder, where the run keeps a file; remove or rename it" in err
+        assert [h["generation"] for h in map(json.loads, (
+            kept if name == "history.jsonl" else run_dir / "history.jsonl"
+        ).read_text().splitlines())] == [0, 1, 2]  # nothing evaluated
+        saved.rmdir()
+        if kept.exists():
+            kept.rename(saved)
+    assert _resume(run_dir, capsys)[0] == 0
 
 
 def test_every_single_bit_flip_is_detected(run_dir: Path) -> None:
