@@ -1026,6 +1026,14 @@ def _evolve(
     seed_genome: Genome | None = None
     if seed_source is not None:
         seed_genome = Genome.from_fsa(seed_source, skills, seed_path or seed_source.path or "")
+        limited = [f"{name} ({st.time_limit:g} s)" for name, st in seed_source.states.items()
+                   if st.time_limit is not None]
+        if limited and checkpoint is None:  # said once, as the run starts
+            print(f"warning: {seed_path or 'the seed FSA'}: the time_limit of "
+                  f"{', '.join(limited)} is not part of what evolves: evolution runs the "
+                  "states without it and the evolved FSA has none; put it back in the "
+                  "exported file (or bound whole evaluations with --eval-time-limit)",
+                  file=sys.stderr)
     if record is None:
         record = run_record(task, seed, cfg, seed_path, simplify_result, simplify_trials,
                             check_trials)

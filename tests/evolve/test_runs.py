@@ -385,6 +385,26 @@ def test_seed_fsa_keeps_its_state_names_and_comments(tmp_path: Path) -> None:
         "success": "Pick"}  # changed by simplification, so written afresh
 
 
+def test_a_seed_fsas_time_limit_is_said_to_be_dropped(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A state's time_limit (a guard for a hardware skill) is not part of the genome: the
+    run says so in one line as it starts, instead of dropping it silently."""
+    seed = tmp_path / "seed.yaml"
+    seed.write_text(SEED.replace("    skill: PickBlock\n",
+                                 "    skill: PickBlock\n    time_limit: 0.5   # guard\n"))
+    task = load_task("examples.toy_task", p_fail=0.0, trials=2)
+    evolve(task, CFG.replace(generations=1), seed=0, seed_fsa=seed,
+           out_dir=tmp_path / "run", simplify_trials=20)
+    warned = [x for x in capsys.readouterr().err.splitlines() if "time_limit" in x]
+    assert warned == [f"warning: {seed}: the time_limit of Pick (0.5 s) is not part of what "
+                      "evolves: evolution runs the states without it and the evolved FSA has "
+                      "none; put it back in the exported file (or bound whole evaluations "
+                      "with --eval-time-limit)"]
+    evolve(task, resume=tmp_path / "run")
+    assert "time_limit" not in capsys.readouterr().err  # said once
+
+
 # -- 7: progress -----------------------------------------------------------------------------
 class _Terminal(io.StringIO):
     def isatty(self) -> bool:
