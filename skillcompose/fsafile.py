@@ -68,7 +68,7 @@ from ruamel.yaml.reader import ReaderError
 from ruamel.yaml.representer import RoundTripRepresenter
 
 from .errors import FSAFileError, FSAValidationError, ParamError, Problem, UnknownSkillError, clip
-from .files import atomic_write
+from .files import NotARegularFile, atomic_write, read_limited
 from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step_limit_problem
 from .params import time_limit_problem
 
@@ -122,10 +122,13 @@ def load_fsa(path: str | os.PathLike[str]) -> FSA:
     """Read an FSA file. Raises :class:`FSAFileError` naming file, line and fix."""
     p = Path(path)
     try:
-        with p.open("rb") as f:
-            data = f.read(MAX_FILE_BYTES + 1)
+        data = read_limited(p, MAX_FILE_BYTES)  # never waits on a pipe, never reads past
     except FileNotFoundError:
         raise FSAFileError([Problem("file not found", fix="check the path")], str(p)) from None
+    except NotARegularFile as exc:
+        problem = Problem(f"cannot read the file: {exc.strerror}",
+                          fix="give the path of an FSA file")
+        raise FSAFileError([problem], str(p)) from None
     except OSError as exc:
         problem = Problem(f"cannot read the file: {exc.strerror or exc}")
         raise FSAFileError([problem], str(p)) from None
