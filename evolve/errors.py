@@ -18,6 +18,8 @@ class EvolutionConfigError(EvolutionError, ValueError):
 class SeedFSAError(EvolutionError, ValueError):
     """A seed FSA (``--seed-fsa FILE``) cannot become a genome of this task."""
 
+    listing = True  # its problems, one per line
+
 
 class CheckpointError(EvolutionError):
     """A run directory has no usable checkpoint, or it belongs to another run."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from skillcompose import FSA, CompiledFSA, ParamSpec, Skill, State
+from skillcompose.errors import one_line
 from skillcompose.fsa import RESERVED_OUTCOMES
 from skillcompose.params import param_problems
 from skillcompose.task import Task
@@ -308,7 +309,7 @@ class Genome:
         Raises :class:`SeedFSAError` when the FSA uses a skill the task does not offer, has
         other terminals, or misses a transition.
         """
-        src = where or fsa.path or "the seed FSA"
+        src = one_line(where or fsa.path or "the seed FSA")
         if tuple(fsa.terminals) != skills.terminals:
             raise SeedFSAError(
                 f"{src}: terminals {list(fsa.terminals)} differ from the task's "
@@ -362,7 +363,8 @@ class Genome:
                     edges.append(skills.terminal_code(t))
             nodes[ids[sname]] = Node(k, params, edges)
         if problems:
-            raise SeedFSAError("cannot seed evolution from this FSA:\n  " + "\n  ".join(problems))
+            raise SeedFSAError("cannot seed evolution from this FSA:\n  " + "\n  ".join(
+                one_line(p) for p in problems))
         g = cls(nodes, ids[fsa.start], nxt, {"seeded_from": src})
         g.prune()
         return g

@@ -5,11 +5,18 @@ name and skill, the start state marked in red, edges labelled with outcomes, and
 terminal outcomes as boxes. ``timeout`` is implicit (every state can time out) and not drawn.
 Pictures (SVG, PNG, PDF) come from Graphviz ``dot`` when it is installed, else from
 matplotlib with a layered layout of its own.
+
+Whatever the names hold, the text is valid: nodes have generated ids (``s0``, ``s1``, ... for
+states, ``t0``, ... for terminal outcomes), so no state can merge with another node, and names
+appear only in labels, escaped for DOT (``\\"``) or Mermaid (entity codes such as ``#34;``);
+control characters show as escapes (``\\x1b``). A drawing is written beside its file and
+renamed over it, never over the FSA file it draws.
 """
 
 from __future__ import annotations
 
 import io
+import os
 import shutil
 import subprocess
 from collections import Counter, defaultdict
@@ -17,7 +24,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, one_line
+from .files import temporary_beside
 
 if TYPE_CHECKING:  # drawing needs only an FSA's attributes: fsa.py may import this module
     from .fsa import FSA, State
@@ -31,8 +39,22 @@ class DrawingError(SkillcomposeError):
 
 
 def _q(text: str) -> str:
-    escaped = str(text).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
-    return f'"{escaped}"'
+    """``text`` as a quoted DOT string: line breaks become label breaks (``\\n``), other
+    control characters visible escapes, backslashes and quotes escaped."""
+    lines = (one_line(part).replace("\\", "\\\\").replace('"', '\\"')
+             for part in str(text).split("\n"))
+    return '"' + "\\n".join(lines) + '"'
+
+
+_MERMAID_PLAIN = frozenset(" _-.,")
+
+
+def _m(text: str) -> str:
+    """``text`` for a Mermaid label: letters, digits, spaces and ``_-.`` as they are, every
+    other character as an entity code (``"`` is ``#34;``), control characters as visible
+    escapes first; nothing in it can end the label or the statement."""
+    return "".join(c if c.isalnum() or c in _MERMAID_PLAIN else f"#{ord(c)};"
+                   for c in one_line(str(text)))
 
 
 def _fmt(v: Any) -> str:
@@ -44,9 +66,11 @@ def _fmt(v: Any) -> str:
 
 
 def _label(sname: str, st: State, params: bool) -> str:
-    text = sname if sname.startswith(st.skill) else f"{sname}\n({st.skill})"
+    """A state's label: its lines (name, skill, parameters) each printable as one line."""
+    name = one_line(sname)
+    text = name if sname.startswith(st.skill) else f"{name}\n({one_line(st.skill)})"
     if params and st.params:
-        text += "\n" + ", ".join(f"{k}={_fmt(v)}" for k, v in st.params.items())
+        text += "\n" + one_line(", ".join(f"{k}={_fmt(v)}" for k, v in st.params.items()))
     return text
 
 
@@ -65,6 +89,14 @@ def _used_terminals(fsa: FSA) -> list[str]:
     return [t for t in fsa.terminals if t in used]
 
 
+def _node_ids(fsa: FSA) -> dict[str, str]:
+    """Generated node ids: ``s<k>`` for the k-th state, ``t<k>`` for the k-th terminal outcome
+    (distinct whatever the names are)."""
+    ids = {s: f"s{k}" for k, s in enumerate(fsa.states)}
+    ids.update({t: f"t{k}" for k, t in enumerate(fsa.terminals) if t not in ids})
+    return ids
+
+
 def to_dot(fsa: FSA, *, params: bool = True, title: str | None = None) -> str:
     """The FSA in Graphviz DOT. Parallel edges to one target merge into one labelled edge."""
     lines = [f"digraph {_q(fsa.name or 'fsa')} {{", "  rankdir=LR;",
@@ -73,16 +105,17 @@ def to_dot(fsa: FSA, *, params: bool = True, title: str | None = None) -> str:
     label = title if title is not None else fsa.name
     if label:
         lines.append(f"  labelloc=t; label={_q(label)};")
+    ids = _node_ids(fsa)
     for sname, st in fsa.states.items():
         attrs = [f"label={_q(_label(sname, st, params))}"]
         if sname == fsa.start:
             attrs += ["color=red", "penwidth=2.5", "fontcolor=red"]
-        lines.append(f"  {_q(sname)} [{', '.join(attrs)}];")
+        lines.append(f"  {ids[sname]} [{', '.join(attrs)}];")
     for t in _used_terminals(fsa):
-        lines.append(f"  {_q('__' + t)} [label={_q(t)}, shape=box, style=rounded];")
+        if t not in fsa.states:
+            lines.append(f"  {ids[t]} [label={_q(t)}, shape=box, style=rounded];")
     for sname, target, label in _routes(fsa):
-        node = "__" + target if target in fsa.terminals else target
-        lines.append(f"  {_q(sname)} -> {_q(node)} [label={_q(label)}];")
+        lines.append(f"  {ids[sname]} -> {ids[target]} [label={_q(label)}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
 
@@ -92,13 +125,13 @@ def to_mermaid(fsa: FSA) -> str:
     ids = {s: f"s{k}" for k, s in enumerate(fsa.states)}
     lines = ["stateDiagram-v2"]
     for sname, st in fsa.states.items():
-        lines.append(f'  state "{sname} ({st.skill})" as {ids[sname]}')
+        lines.append(f'  state "{_m(sname)} ({_m(st.skill)})" as {ids[sname]}')
     lines.append(f"  [*] --> {ids[fsa.start]}")
     for sname, target, label in _routes(fsa):
-        if target in fsa.terminals:
-            lines.append(f"  {ids[sname]} --> [*] : {label} → {target}")
+        if target in ids:
+            lines.append(f"  {ids[sname]} --> {ids[target]} : {_m(label)}")
         else:
-            lines.append(f"  {ids[sname]} --> {ids[target]} : {label}")
+            lines.append(f"  {ids[sname]} --> [*] : {_m(label)} → {_m(target)}")
     lines.append(f"  classDef start stroke:red,stroke-width:3px\n  class {ids[fsa.start]} start")
     return "\n".join(lines) + "\n"
 
@@ -109,24 +142,29 @@ def render(
     """Write a drawing; the format comes from the suffix: .dot, .mmd, .svg, .png, .pdf.
 
     Pictures are laid out by Graphviz ``dot`` when it is installed (``engine="dot"``
-    insists on it), else drawn with matplotlib (``engine="matplotlib"``).
+    insists on it), else drawn with matplotlib (``engine="matplotlib"``). The drawing is
+    written beside ``out`` and renamed onto it: a symbolic link at ``out`` is replaced, not
+    written through. Raises :class:`DrawingError` when ``out`` is the file the FSA was read
+    from, however it is reached (a link, another spelling of the path).
     """
     out = Path(out)
     fmt = out.suffix.lower().lstrip(".")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if fmt in ("dot", "gv", "mmd", "mermaid"):
-        text = to_dot(fsa, params=params) if fmt in ("dot", "gv") else to_mermaid(fsa)
-        out.write_text(text, encoding="utf-8")
-        return out
-    if fmt not in ("svg", "png", "pdf"):
+    if fmt not in ("dot", "gv", "mmd", "mermaid", "svg", "png", "pdf"):
         raise DrawingError(
             f"cannot draw to {out.name}: use a .dot, .mmd, .svg, .png or .pdf file name"
         )
     if engine not in ("auto", "dot", "matplotlib"):
         raise DrawingError(f"unknown drawing engine {engine!r}: auto, dot or matplotlib")
+    _refuse_source(fsa, out)
+    if fmt in ("dot", "gv", "mmd", "mermaid"):
+        text = to_dot(fsa, params=params) if fmt in ("dot", "gv") else to_mermaid(fsa)
+        with temporary_beside(out, suffix=out.suffix) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+        return out
     dot = shutil.which("dot")
     if engine == "matplotlib" or (engine == "auto" and dot is None):
-        draw_matplotlib(fsa, out, params=params)
+        with temporary_beside(out, suffix=out.suffix) as tmp:
+            draw_matplotlib(fsa, tmp, params=params, fmt=fmt)
         return out
     if dot is None:
         raise DrawingError(
@@ -134,13 +172,30 @@ def render(
             "installed; install it (Debian/Ubuntu: `apt-get install graphviz`, macOS: `brew "
             "install graphviz`), or draw with matplotlib (engine='matplotlib')"
         )
-    proc = subprocess.run(
-        [dot, f"-T{fmt}", "-o", str(out)],
-        input=to_dot(fsa, params=params), text=True, capture_output=True, timeout=60,
-    )
-    if proc.returncode != 0:
-        raise DrawingError(f"`dot` failed drawing {out.name}: {proc.stderr.strip()}")
+    with temporary_beside(out, suffix=out.suffix) as tmp:
+        proc = subprocess.run(
+            [dot, f"-T{fmt}", "-o", str(tmp)],
+            input=to_dot(fsa, params=params), text=True, capture_output=True, timeout=60,
+        )
+        if proc.returncode != 0:
+            raise DrawingError(f"`dot` failed drawing {out.name}: {proc.stderr.strip()}")
     return out
+
+
+def _refuse_source(fsa: FSA, out: Path) -> None:
+    """Raise :class:`DrawingError` when ``out`` names the file ``fsa`` was read from."""
+    source = fsa.path
+    if source is None:
+        return
+    try:
+        same = os.path.samefile(out, source)
+    except OSError:  # one of them does not exist (or cannot be looked at): not the same
+        same = False
+    if same:
+        raise DrawingError(
+            f"cannot draw to {out}: it is the FSA file being drawn ({source}); name another "
+            "output file"
+        )
 
 
 def to_svg(fsa: FSA, *, params: bool = True) -> str:
@@ -204,19 +259,20 @@ def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = T
         text = _label(sname, st, params)
         colour = "tab:red" if sname == fsa.start else "tab:blue"
         boxes[sname] = ax.annotate(
-            text, xy[sname], ha="center", va="center", fontsize=8, zorder=3,
+            text, xy[sname], ha="center", va="center", fontsize=8, zorder=3, parse_math=False,
             bbox={"boxstyle": "round,pad=0.4", "fc": "white", "ec": colour,
                   "lw": 2.0 if sname == fsa.start else 1.0},
         )
     for t in _used_terminals(fsa):
-        boxes[t] = ax.annotate(t, xy[t], ha="center", va="center", fontsize=8, zorder=3,
+        boxes[t] = ax.annotate(one_line(t), xy[t], ha="center", va="center", fontsize=8,
+                               zorder=3, parse_math=False,
                                bbox={"boxstyle": "square,pad=0.4", "fc": "#eef7ee",
                                      "ec": "tab:green"})
     for sname, target, label in _routes(fsa):
         (x0, y0), (x1, y1) = xy[sname], xy[target]
         if target == sname:
-            ax.annotate(f"↻ {label}", (x0, y0 + 0.42), ha="center", fontsize=7,
-                        color="dimgray")
+            ax.annotate(f"↻ {one_line(label)}", (x0, y0 + 0.42), ha="center", fontsize=7,
+                        color="dimgray", parse_math=False)
             continue
         back = x1 <= x0  # edges going back or sideways bend more
         rad = 0.35 if back else 0.12
@@ -226,16 +282,17 @@ def draw_matplotlib(fsa: FSA, out: str | Path | io.StringIO, *, params: bool = T
         ))
         mx, my = (x0 + x1) / 2, (y0 + y1) / 2
         dx, dy = x1 - x0, y1 - y0  # the arc's bulge is to the right of the direction
-        ax.annotate(label, (mx + rad * dy / 2, my - rad * dx / 2), ha="center",
-                    va="center", fontsize=7, color="dimgray", zorder=2,
+        ax.annotate(one_line(label), (mx + rad * dy / 2, my - rad * dx / 2), ha="center",
+                    va="center", fontsize=7, color="dimgray", zorder=2, parse_math=False,
                     bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
                           "alpha": 0.8})
     xs, ys = zip(*xy.values(), strict=True)
     ax.set_xlim(min(xs) - 1.6, max(xs) + 1.6)
     ax.set_ylim(min(ys) - 1.0, max(ys) + 1.0)
     ax.axis("off")
-    ax.set_title(f"{fsa.name or 'FSA'}: start in red, terminal outcomes in green; "
-                 f"runs over {fsa.step_limit} steps end in timeout", fontsize=9)
+    ax.set_title(f"{one_line(fsa.name or 'FSA')}: start in red, terminal outcomes in green; "
+                 f"runs over {fsa.step_limit} steps end in timeout", fontsize=9,
+                 parse_math=False)
     fig.tight_layout()
     if isinstance(out, io.StringIO):
         fig.savefig(out, format=fmt or "svg")

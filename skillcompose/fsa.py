@@ -19,7 +19,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
-from .errors import FSAValidationError, Problem, UnknownSkillError, clip
+from .errors import FSAValidationError, Problem, UnknownSkillError, clip, control_characters
 from .params import param_problems, time_limit_problem
 
 if TYPE_CHECKING:
@@ -171,6 +171,12 @@ class FSA:
                     state=str(sname), at=("states", str(sname)),
                 ))
                 continue
+            if control_characters(sname):
+                out.append(self._problem(
+                    _control_message(f"state name {sname!r}", sname), state=sname,
+                    fix="rename the state without it", at=("states", sname),
+                ))
+                continue
             if sname in self.terminals or sname in RESERVED_OUTCOMES:
                 out.append(self._problem(
                     f"a state cannot be named {sname!r}: that is a terminal outcome",
@@ -179,6 +185,16 @@ class FSA:
             problem = None if st.time_limit is None else time_limit_problem(st.time_limit, sname)
             if problem is not None:
                 out.append(self._at(problem, "states", sname, "time_limit"))
+            for what, text, at in (
+                ("skill name", st.skill, ("skill",)),
+                *(("parameter name", k, ("params", k)) for k in st.params),
+                *(("outcome", k, ("transitions", k)) for k in st.transitions),
+            ):
+                if isinstance(text, str) and control_characters(text):
+                    out.append(self._problem(
+                        _control_message(f"{what} {text!r}", text), state=sname, key=text,
+                        fix=f"write the {what} without it", at=("states", sname, *at),
+                    ))
             for outcome, target in st.transitions.items():
                 if target not in self.states and target not in self.terminals:
                     out.append(self._problem(
@@ -341,6 +357,13 @@ class FSA:
             outs = registry.spec(s).outcomes if registry is not None else ("success",)
             states[label] = State(s, {}, {o: (nxt if o == "success" else on_other) for o in outs})
         return cls(states, labels[0], step_limit=step_limit, name=name)
+
+
+def _control_message(what: str, text: str) -> str:
+    """``what`` (a name, quoted) holds characters a terminal acts on instead of showing."""
+    chars = ", ".join(dict.fromkeys(f"U+{ord(c):04X}" for c in control_characters(text)))
+    return (f"{what} holds a control character ({chars}), which would act on a terminal or "
+            "a drawing instead of showing")
 
 
 def step_limit_problem(value: Any) -> Problem | None:

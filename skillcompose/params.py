@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
+import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, get_args, get_origin
@@ -27,11 +29,18 @@ from typing import Any, Literal, get_args, get_origin
 from .errors import ParamError, Problem, clip
 
 __all__ = [
-    "Choice", "Param", "ParamKind", "ParamSpec", "Scale", "param_problems", "time_limit_problem",
+    "MAX_WHOLE_BOUND", "Choice", "Param", "ParamKind", "ParamSpec", "Scale", "check_declared",
+    "param_problems", "time_limit_problem",
 ]
 
 ParamKind = Literal["float", "int", "bool", "choice"]
 Scale = Literal["linear", "log"]
+
+MAX_WHOLE_BOUND = 2**49
+"""The largest magnitude of a whole-number parameter's bounds. Evolution holds a parameter
+as a float in [0, 1]; within ±2**49 every whole number of the range maps to its gene and back
+exactly (and FSA files hold whole numbers within 64 bits)."""
+_INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1  # the whole numbers an FSA file holds
 
 
 @dataclass(frozen=True)
@@ -194,7 +203,10 @@ class ParamSpec:
         assert self.low is not None and self.high is not None
         x = 0.0 if x < 0.0 else 1.0 if x > 1.0 else float(x)
         if self.scale == "log":
-            v = math.exp(math.log(self.low) + x * (math.log(self.high) - math.log(self.low)))
+            try:
+                v = math.exp(math.log(self.low) + x * (math.log(self.high) - math.log(self.low)))
+            except OverflowError:  # a last rounding beyond the largest float: the bound
+                v = self.high
         else:
             v = self.low + x * (self.high - self.low)
         return min(max(v, self.low), self.high)
@@ -269,6 +281,8 @@ def make_param_spec(
         options: Sequence[Any] = decl.options if isinstance(decl, Choice) else get_args(base_type)
         if not options:
             raise ParamError(f"{where}: a choice needs at least one option")
+        for option in options:
+            _check_option(option, where)
         spec = ParamSpec(
             name, "choice", default, choices=tuple(options),
             doc=decl.doc if isinstance(decl, Choice) else "",
@@ -286,13 +300,8 @@ def make_param_spec(
                     f"`Annotated[tuple[float, ...], Param(low, high, size={decl.size})]`, "
                     f"got {base_type!r}"
                 )
-        if not decl.low <= decl.high:
-            raise ParamError(f"{where}: low {decl.low} is above high {decl.high}")
-        if decl.scale == "log" and decl.low <= 0:
-            raise ParamError(f"{where}: scale='log' needs a positive low bound, got {decl.low}")
-        if decl.scale not in ("linear", "log"):
-            raise ParamError(f"{where}: scale must be 'linear' or 'log', got {decl.scale!r}")
         whole = base_type is int or (base_type is None and isinstance(default, int))
+        _check_bounds(decl.low, decl.high, decl.scale, where, whole and decl.size is None)
         spec = ParamSpec(
             name, "int" if whole and decl.size is None else "float", default,
             low=float(decl.low), high=float(decl.high), unit=decl.unit, scale=decl.scale,
@@ -307,6 +316,84 @@ def make_param_spec(
     if default is _MISSING:
         raise ParamError(f"{where}: needs a default value (evolution and files may omit it)")
     return dataclasses.replace(spec, default=spec.check(default, f"skill {owner}"))
+
+
+def check_declared(spec: ParamSpec, owner: str) -> None:
+    """Raise :class:`ParamError` (naming skill ``owner``, the parameter and the limit) when
+    ``spec`` declares values that evolution could write but an FSA file could not hold, or
+    read back as a different value; a registry checks every skill it is given with this."""
+    where = f"skill {owner}, parameter {spec.name!r}"
+    if spec.kind == "choice":
+        for option in spec.choices:
+            _check_option(option, where)
+    elif spec.kind in ("int", "float"):
+        _check_bounds(spec.low, spec.high, spec.scale, where, spec.kind == "int")
+
+
+def _check_bounds(low: Any, high: Any, scale: str, where: str, whole: bool) -> None:
+    """Refuse a range that evolution cannot search or whose values an FSA file cannot hold:
+    bounds that are not finite numbers in order, a span beyond the largest float, a log
+    scale without a positive low bound, whole-number bounds beyond ±:data:`MAX_WHOLE_BOUND`."""
+    for bound in (low, high):
+        if isinstance(bound, bool) or not isinstance(bound, numbers.Real):
+            raise ParamError(f"{where}: the bounds must be numbers, got low "
+                             f"{clip(repr(low))}, high {clip(repr(high))}; declare "
+                             "Param(low, high)")
+    try:
+        lo, hi = float(low), float(high)
+    except OverflowError:  # a whole number beyond the largest float
+        lo, hi = math.inf, math.inf
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ParamError(
+            f"{where}: the bounds must be finite numbers (every value of the range must be "
+            f"one that evolution can write and FSA files hold), got low {_num(low)}, high "
+            f"{_num(high)}; declare a finite range"
+        )
+    if not low <= high:
+        raise ParamError(f"{where}: low {_num(low)} is above high {_num(high)}")
+    if whole and max(abs(low), abs(high)) > MAX_WHOLE_BOUND:
+        raise ParamError(
+            f"{where}: range [{_num(low)}, {_num(high)}] of a whole number goes beyond "
+            f"±2**49 ({MAX_WHOLE_BOUND}), the largest whole numbers evolution maps to its "
+            "genes and back exactly; keep both bounds within it"
+        )
+    if scale not in ("linear", "log"):
+        raise ParamError(f"{where}: scale must be 'linear' or 'log', got {scale!r}")
+    if scale == "log" and low <= 0:
+        raise ParamError(f"{where}: scale='log' needs a positive low bound, got {_num(low)}")
+    if scale == "linear" and not math.isfinite(hi - lo):
+        raise ParamError(
+            f"{where}: range [{_num(low)}, {_num(high)}] spans more than the largest float "
+            f"({2**1024 - 2**971:.4g}), so evolution cannot map it to [0, 1]; narrow it, or "
+            "use scale='log' for a positive range"
+        )
+
+
+def _num(value: Any) -> str:
+    """A bound in a message: short even when it is a whole number of a thousand digits."""
+    try:
+        return f"{value:.6g}"
+    except OverflowError:
+        return f"a whole number of {len(str(abs(value)))} digits"
+
+
+def _check_option(option: Any, where: str) -> None:
+    """Refuse a choice's option that an FSA file cannot hold and give back as the same value:
+    options are text (without control characters), whole numbers within 64 bits, numbers
+    that are not NaN, true/false or None."""
+    ok = option is None or isinstance(option, bool)
+    if type(option) is int:
+        ok = _INT64_MIN <= option <= _INT64_MAX
+    elif type(option) is float:
+        ok = not math.isnan(option)
+    elif type(option) is str:
+        ok = not any(unicodedata.category(c) in ("Cc", "Cs") for c in option)
+    if not ok:
+        raise ParamError(
+            f"{where}: option {clip(repr(option), 60)} cannot be written to an FSA file and "
+            "read back as itself; options are text without control characters, whole "
+            "numbers within 64 bits, numbers other than NaN, true/false or None"
+        )
 
 
 _MISSING: Any = object()  # the default of a parameter declared without one (None is a value)

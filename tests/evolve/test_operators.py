@@ -179,6 +179,23 @@ def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
     assert "failure" in msg and "state B" in msg  # the unrouted outcome of PickBlock
 
 
+def test_seed_fsa_errors_keep_one_problem_per_line(toy_skills: SkillSet) -> None:
+    from evolve import SeedFSAError
+    from skillcompose import loads_fsa
+    from skillcompose.errors import printable
+
+    text = (
+        "format: 1\nstart: A\nstates:\n  A:\n    skill: Fly\n    transitions: {success: B}\n"
+        "  B:\n    skill: PickBlock\n    transitions: {success: success}\n"
+    )
+    with pytest.raises(SeedFSAError) as err:
+        Genome.from_fsa(loads_fsa(text, "bad\n  seed\x1b.yaml"), toy_skills)
+    lines = printable(err.value).split("\n")
+    assert lines[0] == "cannot seed evolution from this FSA:" and len(lines) == 3
+    assert all(line.startswith("  bad\\n  seed\\x1b.yaml:") for line in lines[1:])
+    assert all(line.isprintable() for line in lines)
+
+
 
 def test_seed_fsa_parameters_are_checked_as_the_model_checks_them(
     toy: Task, toy_skills: SkillSet

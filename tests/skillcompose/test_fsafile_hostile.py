@@ -302,3 +302,56 @@ def test_vector_parameters_of_many_states_fit_the_bounds() -> None:
     t0 = time.perf_counter()
     assert len(loads_fsa(text).states) == 70
     assert time.perf_counter() - t0 < 1.5 * SLACK
+
+
+# -- control characters in the names a file defines ---------------------------------------------
+@pytest.mark.parametrize(("escape", "char"), [
+    ("\\e", "\x1b"), ("\\0", "\x00"), ("\\x7f", "\x7f"), ("\\x9b", "\x9b"),
+    ("\\u202e", "\u202e"), ("\\u200b", "\u200b"), ("\\ufeff", "\ufeff"), ("\\a", "\x07"),
+])
+def test_a_state_name_with_a_control_character_is_one_located_line(
+    escape: str, char: str,
+) -> None:
+    text = f'format: 1\nstart: "A{escape}B"\nstates:\n  "A{escape}B": {{skill: X, ' \
+        'transitions: {ok: success}}\n'
+    shown = repr(f"A{char}B")
+    message = _only(text)
+    assert message == (
+        f"bad.yaml:4:3: state {shown[1:-1]}: state name {shown} holds a control character "
+        f"(U+{ord(char):04X}), which would act on a terminal or a drawing instead of showing; "
+        "rename the state without it"
+    )
+    assert message.isprintable()
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ('format: 1\nstart: A\nstates: {A: {skill: "X\\x9b", transitions: {ok: success}}}\n',
+     "bad.yaml:3:21: state A: skill name 'X\\x9b' holds a control character (U+009B), which "
+     "would act on a terminal or a drawing instead of showing; write the skill name without "
+     "it"),
+    ('format: 1\nstart: A\nstates: {A: {skill: X, params: {"p\\u202e": 1}, transitions: '
+     '{ok: success}}}\n',
+     "bad.yaml:3:44: state A: parameter name 'p\\u202e' holds a control character (U+202E), "
+     "which would act on a terminal or a drawing instead of showing; write the parameter "
+     "name without it"),
+    ('format: 1\nstart: A\nstates: {A: {skill: X, transitions: {"ok\\t": success}}}\n',
+     "bad.yaml:3:46: state A: outcome 'ok\\t' holds a control character (U+0009), which "
+     "would act on a terminal or a drawing instead of showing; write the outcome without it"),
+])
+def test_other_names_with_control_characters_are_refused(text: str, expected: str) -> None:
+    assert _only(text) == expected
+
+
+def test_a_state_name_with_a_control_character_is_refused_in_python_too() -> None:
+    with pytest.raises(FSAValidationError) as refused:
+        FSA({"A\x1b[2J": State("X", {}, {"ok": "success"})}, "A\x1b[2J")
+    assert str(refused.value) == (
+        "state A\\x1b[2J: state name 'A\\x1b[2J' holds a control character (U+001B), which "
+        "would act on a terminal or a drawing instead of showing; rename the state without it"
+    )
+
+
+def test_printable_names_are_still_fine() -> None:
+    fsa = loads_fsa('format: 1\nname: "Pour é 🤖"\nstart: "Grasp-é"\nstates:\n  "Grasp-é":'
+                    ' {skill: X, params: {"p ü": 1}, transitions: {ok: success}}\n')
+    assert fsa.start == "Grasp-é" and fsa.name == "Pour é 🤖"

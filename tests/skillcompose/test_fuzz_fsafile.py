@@ -211,3 +211,48 @@ def test_deep_brackets_anywhere(n: int, open_: str, close: str) -> None:
         spans = _value_spans(seed)
         for a, b in (spans[0], spans[len(spans) // 2], spans[-1]):
             _check(loads_fsa, seed[:a] + open_ * n + "1" + close * n + seed[b:], "deep.yaml")
+
+
+# -- what evolution writes, the reader reads back --------------------------------------------
+_BOUNDS = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),  # subnormals, huge magnitudes, inf, nan
+    st.floats(-1e3, 1e3),
+    st.integers(-2**52, 2**52),
+    st.integers(-2**70, 2**70),
+    st.sampled_from([0, 1, -1, 2**49, -2**49, 2**49 + 1, 2**63 - 1, 5e-324, -5e-324,
+                     2.2250738585072014e-308, 1.7976931348623157e308, -1.7976931348623157e308]),
+)
+_GENES = st.floats(0.0, 1.0) | st.sampled_from([0.0, 1.0, 0.5, 5e-324, 1 - 2**-53])
+
+
+@FUZZ
+@given(_BOUNDS, _BOUNDS, st.sampled_from(["int", "float", "vector", "log"]),
+       st.lists(_GENES, min_size=3, max_size=3))
+def test_fuzz_what_evolution_writes_the_reader_reads(
+    a: float, b: float, kind: str, genes: list[float],
+) -> None:
+    """A declaration is refused in one line naming the skill and the parameter, or every value
+    evolution can give it is written, read back as itself and passes the skill's check."""
+    from skillcompose import FSA, ParamError, Registry, Skill, SkillSpec, State
+    from skillcompose.params import Param, make_param_spec
+
+    low, high = (a, b) if not (b < a) else (b, a)
+    size = 3 if kind == "vector" else None
+    base = {"int": int, "float": float, "vector": tuple, "log": float}[kind]
+    decl = Param(low, high, scale="log" if kind == "log" else "linear", size=size)
+    default = (low,) * 3 if size else low
+    if kind != "int" and isinstance(low, int):
+        default = (float(low),) * 3 if size else float(low)  # may overflow: refused below
+    try:
+        spec = make_param_spec("x", base, decl, default, "Knob")
+    except ParamError as exc:
+        assert str(exc).startswith("skill Knob") and "'x'" in str(exc) and "\n" not in str(exc)
+        return
+    value = spec.from_genes(genes[:spec.genes])
+    registry = Registry([Skill(SkillSpec("Knob", ("success",), (spec,)),
+                               lambda bb, rng, x: "success")])
+    fsa = FSA({"Knob_1": State("Knob", {"x": value}, {"success": "success"})}, "Knob_1")
+    back = loads_fsa(dumps_fsa(fsa, registry), "best.yaml").validate(registry)
+    assert back.states["Knob_1"].params["x"] == value
+    if kind == "int":  # whole numbers go through the genes exactly
+        assert spec.from_genes(spec.to_genes(value)) == value

@@ -48,9 +48,10 @@ def test_trap_states_without_networkx_agree(name: str) -> None:
 
 def test_dot_and_mermaid() -> None:
     dot = to_dot(LOOPY)
-    assert '"Count_1" [label="Count_1", color=red' in dot  # the start is marked
-    assert '"Coin_2" -> "__success" [label="heads"]' in dot
-    assert '"Coin_2" [label="Coin_2\\np=0.9"' in dot
+    assert 's0 [label="Count_1", color=red' in dot  # the start is marked
+    assert 's1 -> t0 [label="heads"]' in dot  # generated ids: t0 is the terminal success
+    assert 't0 [label="success", shape=box' in dot
+    assert 's1 [label="Coin_2\\np=0.9"' in dot
     mmd = to_mermaid(LOOPY)
     assert "[*] --> s0" in mmd and "s1 --> [*] : heads → success" in mmd
 
