@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from skillcompose.arguments import add_json_option, print_json
-from skillcompose.errors import SkillcomposeError
+from skillcompose.arguments import add_json_option, json_output, print_json, set_hint
+from skillcompose.errors import SkillcomposeError, printable
 
 from .config import EVALUATION_BACKENDS as BACKENDS
 from .config import PRESETS, TOPOLOGIES, EvolutionConfig
@@ -340,7 +340,8 @@ def handle(args: argparse.Namespace) -> int:
             check_trials=check_trials,
         )
     except SkillcomposeError as exc:
-        print(f"skillcompose evolve: error: {exc}", file=sys.stderr)
+        print(f"skillcompose evolve: error: {printable(exc)}{set_hint(args, exc)}",
+              file=sys.stderr)
         return 2
     if getattr(args, "json", False):
         print_json(summary_document(result, task.name))
@@ -451,7 +452,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return int(args.func(args))
+    with json_output(bool(getattr(args, "json", False))):  # standard output: the document
+        return int(args.func(args))
 
 
 if __name__ == "__main__":

@@ -19,14 +19,16 @@ which ``skillcompose`` adds to every subcommand by itself), :func:`add_json_opti
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import json
 import math
 import os
 import re
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from .errors import SkillcomposeError, clip
 
@@ -38,6 +40,7 @@ __all__ = [
     "add_json_option",
     "add_output_options",
     "existing_dir",
+    "json_output",
     "module_or_file",
     "note",
     "number",
@@ -45,6 +48,7 @@ __all__ = [
     "output_file",
     "print_json",
     "seed",
+    "set_hint",
     "setting",
     "verbosity",
     "whole",
@@ -119,13 +123,36 @@ def module_or_file(text: str) -> str:
 
 
 def setting(text: str) -> str:
-    """A task setting ``NAME=VALUE`` (the value is converted by the task's loader)."""
-    name, eq, _ = text.partition("=")
+    """A task setting ``NAME=VALUE`` (the value is converted by the task's loader); a value
+    that reads as a number must be a finite one."""
+    name, eq, value = text.partition("=")
     if not eq or not re.fullmatch(_NAME, name.strip()):
         raise argparse.ArgumentTypeError(
             f"must look like NAME=VALUE (e.g. p_fail=0.3), got {_shown(text)}"
         )
+    try:
+        number_ = float(value)
+    except ValueError:
+        return text
+    if not math.isfinite(number_):
+        raise argparse.ArgumentTypeError(
+            f"{name.strip()}: {_shown(value)} is not a finite number; give a number within "
+            "about ±1.8e308 (no inf, no nan)"
+        )
     return text
+
+
+def set_hint(args: argparse.Namespace, exc: BaseException) -> str:
+    """``"; check --set NAME"`` for the settings given with ``--set`` that were in play
+    when the task's own code failed (a :class:`~skillcompose.task.TaskError` carries them),
+    else ``""``."""
+    involved = getattr(exc, "settings", None) or {}
+    given = {item.partition("=")[0].strip() for item in getattr(args, "settings", None) or ()}
+    names = [name for name in involved if name in given]
+    if not names:
+        return ""
+    values = "value" if len(names) == 1 else "values"
+    return f"; check the {values} given with " + ", ".join(f"--set {n}" for n in names)
 
 
 def _writable_place(path: Path) -> str | None:
@@ -240,6 +267,98 @@ def _plain(value: Any) -> Any:
 
 
 def print_json(document: Mapping[str, Any]) -> None:
-    """Write ``document`` as one JSON document (and a newline) on standard output."""
-    sys.stdout.write(json.dumps(_plain(document), indent=2, allow_nan=False) + "\n")
-    sys.stdout.flush()
+    """Write ``document`` as one JSON document (and a newline) on standard output (the one
+    the command started with, while :func:`json_output` keeps it)."""
+    out = _DOCUMENT_STREAMS[-1] if _DOCUMENT_STREAMS else sys.stdout
+    if out is None:  # (Python sets sys.stdout to None when it starts without one)
+        raise OSError(errno.EBADF, "standard output is closed: nowhere to write the JSON "
+                      "document")
+    out.write(json.dumps(_plain(document), indent=2, allow_nan=False) + "\n")
+    out.flush()
+
+
+_DOCUMENT_STREAMS: list[TextIO | None] = []
+"""Where :func:`print_json` writes while :func:`json_output` is active (the innermost
+last). Like the file descriptors it stands for, this is the process's."""
+_KEPT_FDS: list[int] = []
+"""The descriptors :func:`json_output` keeps the real standard output on."""
+
+
+def _drop_kept_fds_in_child() -> None:
+    """In a process forked while a document is kept (an evaluation worker): /dev/null over
+    the kept standard output, so the child can never write there, nor hold the pipe open."""
+    if not _KEPT_FDS:
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    for fd in _KEPT_FDS:
+        with contextlib.suppress(OSError):
+            os.dup2(null, fd)
+    os.close(null)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_drop_kept_fds_in_child)
+
+
+@contextlib.contextmanager
+def json_output(active: bool = True) -> Iterator[None]:
+    """Keep standard output for the one JSON document of ``--json`` while the block runs.
+
+    Everything else written there goes to standard error: ``print`` in a task or a skill
+    (``sys.stdout`` is standard error meanwhile) and, when standard output is file
+    descriptor 1, what C code, child processes and forked workers write to that
+    descriptor (it is pointed at standard error; the document goes to a copy of the real
+    one). :func:`print_json` writes the document there. ``active=False`` changes nothing.
+    """
+    if not active:
+        yield
+        return
+    real = sys.stdout
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        real.flush()
+    kept = _keep_fd_1() if _fileno(real) == 1 else None
+    copy: TextIO | None = None
+    if kept is not None:  # the document goes to the real standard output, kept aside
+        copy = open(kept, "w", closefd=False,  # noqa: SIM115 - closed in the finally below
+                    encoding=getattr(real, "encoding", None) or "utf-8",
+                    errors=getattr(real, "errors", None) or "strict")
+        _KEPT_FDS.append(kept)
+    _DOCUMENT_STREAMS.append(copy if copy is not None else real)
+    sys.stdout = sys.stderr
+    try:
+        yield
+    finally:
+        _DOCUMENT_STREAMS.pop()
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            sys.stderr.flush()
+        sys.stdout = real
+        if kept is not None and copy is not None:
+            _KEPT_FDS.remove(kept)
+            with contextlib.suppress(OSError, ValueError):  # a reader gone away
+                copy.close()
+            os.dup2(kept, 1)
+            os.close(kept)
+
+
+def _keep_fd_1() -> int | None:
+    """A copy of file descriptor 1, which then points at standard error (or, without one,
+    at /dev/null); None when descriptor 1 is closed (then nothing changes)."""
+    try:
+        kept = os.dup(1)
+    except OSError:
+        return None
+    try:
+        os.dup2(2, 1)
+    except OSError:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.close(null)
+    return kept
+
+
+def _fileno(stream: Any) -> int | None:
+    try:
+        return int(stream.fileno())
+    except (AttributeError, OSError, ValueError):  # a StringIO, a test's capture, closed
+        return None
+

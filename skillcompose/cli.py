@@ -15,13 +15,15 @@ validate`` answer at once.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
 import time
 import traceback
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, NoReturn
+import warnings
+from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from . import __version__
 from .arguments import (
@@ -29,15 +31,17 @@ from .arguments import (
     UsageError,
     add_json_option,
     add_output_options,
+    json_output,
     module_or_file,
     note,
     output_file,
     print_json,
     seed,
+    set_hint,
     setting,
     whole,
 )
-from .errors import FSAValidationError, SkillcomposeError
+from .errors import FSAValidationError, SkillcomposeError, one_line, printable
 
 if TYPE_CHECKING:
     from .registry import Registry
@@ -46,13 +50,14 @@ if TYPE_CHECKING:
 __all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
 
 DRAWING_SUFFIXES = (".dot", ".gv", ".mmd", ".mermaid", ".svg", ".png", ".pdf")
+MERMAID_SUFFIXES = (".mmd", ".mermaid")
 
 
 class _Parser(argparse.ArgumentParser):
     """Usage errors in one line: which argument, what is allowed, what was given."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 SUBCOMMAND_MODULES = (
     "evolve.cli",
@@ -67,10 +72,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog="skillcompose",
         description="Compose robot skills into finite state automata, run and evolve them.",
         epilog="-q/-v may be given before or after the subcommand. --json (run, validate, "
-        "skills, evolve): one JSON document on standard output. "
+        "skills, evolve): one JSON document on standard output, nothing else (what tasks "
+        "and skills print goes to standard error). "
         "Exit status: 0 done, 1 failed (an output that cannot be written, an "
-        "unexpected error), 2 usage error (an argument not allowed, an invalid FSA file, a "
-        "task or skills module that does not load), 130 interrupted.",
+        "unexpected error, every run of `run` ended in error), 2 usage error (an argument "
+        "not allowed, an invalid FSA file, a task or skills module that does not load or "
+        "whose make_task, register() or world setup fails), 130 interrupted.",
     )
     parser.add_argument("--version", action="version", version=f"skillcompose {__version__}")
     parser.add_argument("--traceback", action="store_true",
@@ -117,9 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("show", help="draw an FSA file (DOT, Mermaid, SVG, PNG)")
     p.add_argument("file")
     p.add_argument("-o", "--output", type=output_file(*DRAWING_SUFFIXES),
-                   help="output file: .dot .mmd .svg .png .pdf (default: DOT on standard "
-                   "output)")
-    p.add_argument("--mermaid", action="store_true", help="print Mermaid instead of DOT")
+                   help="output file: .dot .mmd .svg .png .pdf, its suffix picks the format "
+                   "(default: DOT on standard output); never the FSA file itself")
+    p.add_argument("--mermaid", action="store_true",
+                   help="Mermaid instead of DOT: on standard output, or with -o a .mmd file")
     p.add_argument("--no-params", action="store_true", help="leave parameters out")
     p.set_defaults(func=cmd_show)
 
@@ -159,14 +167,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     prog = f"skillcompose {args.command}"
     started = time.perf_counter()
     try:
-        status = int(func(args))
+        # --json: standard output holds the document only; what tasks and skills print
+        # goes to standard error
+        with json_output(bool(getattr(args, "json", False))), _one_line_warnings(prog):
+            status = int(func(args))
         note(args, f"{prog}: exit status {status} after {time.perf_counter() - started:.2f} s",
              level=1)
         return status
     except SkillcomposeError as exc:
         if isinstance(exc, FSAValidationError) and args.command == "validate" and args.json:
             print_json(_invalid_document(args.file, exc))
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {printable(exc)}{set_hint(args, exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -179,14 +190,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         if loud:
             raise
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"{prog}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        print(f"{prog}: error: {one_line(f'{where}{exc.strerror or exc}')}", file=sys.stderr)
         return 1
     except Exception as exc:
         if loud:
             raise
-        print(f"{prog}: error: unexpected {type(exc).__name__}: {exc} (rerun with "
+        print(f"{prog}: error: unexpected {type(exc).__name__}: {printable(exc)} (rerun with "
               "`skillcompose --traceback ...` to see where)", file=sys.stderr)
         return 1
+
+
+@contextlib.contextmanager
+def _one_line_warnings(prog: str) -> Iterator[None]:
+    """Warnings shown while a command runs (a numpy RuntimeWarning in a task's code, say)
+    come as one line on standard error naming where they were raised, not as Python's two
+    lines quoting the source; ``-W`` and ``PYTHONWARNINGS`` still choose which are shown."""
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: TextIO | None = None, line: str | None = None) -> None:
+        print(f"{prog}: warning: {category.__name__}: {one_line(str(message))} "
+              f"({filename}:{lineno})", file=file or sys.stderr)
+
+    old = warnings.showwarning
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = old
 
 
 # ---------------------------------------------------------------------------------------
@@ -231,10 +261,11 @@ def check_backend(registry: Registry, backend: str) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from .errors import exception_text
     from .executor import compile_fsa, error_summary, summarize
     from .fsafile import load_fsa
     from .progress import progress_bar
-    from .task import trials
+    from .task import skill_fault, trials
 
     fsa = load_fsa(args.file)
     registry, task = _load(args)
@@ -252,37 +283,48 @@ def cmd_run(args: argparse.Namespace) -> int:
     fitness: list[float] = []
     # on a terminal, once it takes a while; never with -q
     bar = progress_bar(args.trials, "run", disable=getattr(args, "quiet", False))
-    options: dict[str, Any] = {"trace_first": args.trace, "propagate": args.propagate}
-    loop = task.each_trial(compiled, args.seed, args.trials, **options) if task is not None \
-        else trials(compiled, args.seed, args.trials, **options)
+    # A skill that exits (sys.exit(), GeneratorExit...) ends its run in error, as one that
+    # raises does, unless --propagate; the task's own setup or fitness failing stops the
+    # command (a TaskError naming it), and so does a Ctrl-C.
+    options: dict[str, Any] = {"trace_first": args.trace, "propagate": args.propagate,
+                               "catch": None if args.propagate else skill_fault}
+    loop = task.guarded().each_trial(compiled, args.seed, args.trials, **options) \
+        if task is not None else trials(compiled, args.seed, args.trials, **options)
     as_json = getattr(args, "json", False)
     trace_out = sys.stderr if as_json else sys.stdout  # --json: stdout holds the document
-    for trial in loop:
-        bar.update(1)
-        result = trial.result
-        results.append(result)
-        fitness.append(trial.fitness)  # nan without a task
-        if result.trace is not None:
-            _print_trace(result, trace_out)
-        if result.error is not None and args.trace and trial.number == 0:
-            print(f"state {result.last_state} raised:", file=sys.stderr)
-            traceback.print_exception(result.error, file=sys.stderr)
+    try:
+        for trial in loop:
+            bar.update(1)
+            result = trial.result
+            results.append(result)
+            fitness.append(trial.fitness)  # nan without a task
+            if result.trace is not None:
+                _print_trace(result, trace_out)
+            if result.error is not None and args.trace and trial.number == 0:
+                print(f"state {result.last_state} raised:", file=sys.stderr)
+                traceback.print_exception(result.error, file=sys.stderr)
+    except (Exception, KeyboardInterrupt):
+        raise
+    except BaseException as stop:  # --propagate, and a skill exited: its traceback, status 1
+        raise RuntimeError(f"a skill stopped the run: {exception_text(stop)}") from stop
     bar.close()
     s = summarize(results)
     errors = [(k, r.last_state, r.error) for k, r in enumerate(results) if r.error is not None]
     arr = np.asarray(fitness)
+    with np.errstate(invalid="ignore", over="ignore"):  # a run in error scores inf, say
+        mean, std = float(arr.mean()), float(arr.std())
     if as_json:
         first = None
         if errors:
             k, state, exc = errors[0]
-            first = {"run": k, "state": state, "error": f"{type(exc).__name__}: {exc}"}
+            first = {"run": k, "state": state, "error": exception_text(exc)}
         print_json({
             "command": "run", "file": args.file, "seed": args.seed, "trials": s["trials"],
             "backend": compiled.backend, "task": task.name if task is not None else None,
             "step_limit": compiled.step_limit, "outcomes": s["outcomes"],
             "mean_steps": s["mean_steps"],
             "fitness": None if task is None else {
-                "mean": float(arr.mean()), "std": float(arr.std()),
+                "mean": mean, "std": std,
                 "minimize": task.minimize},
             "errors": {"count": len(errors), "first": first},
         })
@@ -294,7 +336,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"  {outcome:<{width}}  {count:>7}  {100.0 * count / s['trials']:6.2f}%")
         print(f"  mean steps {s['mean_steps']:.2f}")
         if task is not None:
-            print(f"  fitness mean {arr.mean():.4g}  std {arr.std():.4g}  "
+            print(f"  fitness mean {mean:.4g}  std {std:.4g}  "
                   f"({'lower' if task.minimize else 'higher'} is better)")
     if errors and not args.trace:
         k, state, exc = errors[0]
@@ -364,10 +406,17 @@ def cmd_show(args: argparse.Namespace) -> int:
     from .draw import render, to_dot, to_mermaid
     from .fsafile import load_fsa
 
+    suffix = os.path.splitext(args.output or "")[1].lower()
+    if args.mermaid and args.output and suffix not in MERMAID_SUFFIXES:
+        raise UsageError(
+            f"--mermaid writes Mermaid, but -o {args.output} asks for "
+            f"{suffix.lstrip('.').upper()} (with -o the file's suffix picks the format); name "
+            "a .mmd file, or leave out --mermaid"
+        )
     fsa = load_fsa(args.file)
     if args.output:
         out = render(fsa, args.output, params=not args.no_params)
-        note(args, f"wrote {out}")
+        note(args, f"wrote {one_line(str(out))}")
     elif args.mermaid:
         sys.stdout.write(to_mermaid(fsa))
     else:

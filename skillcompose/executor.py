@@ -18,6 +18,7 @@ checked before each tick; an instant skill under a limit runs in a worker thread
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 import traceback
@@ -29,7 +30,13 @@ import numpy as np
 
 from .activation import RUNNING, Activation, Starter, ThreadActivation
 from .blackboard import Access, Blackboard, _same
-from .errors import ParamError, SkillProtocolError, UndeclaredOutcomeError
+from .errors import (
+    ParamError,
+    SkillProtocolError,
+    UndeclaredOutcomeError,
+    clip,
+    exception_text,
+)
 from .fsa import ERROR, FSA, PREEMPTED, TIMEOUT
 from .params import time_limit_problem
 
@@ -93,7 +100,7 @@ class RunResult(NamedTuple):
 
 def error_summary(exc: BaseException, frames: int = 3) -> str:
     """``Type: message`` and, below it, the innermost ``frames`` frames of its traceback."""
-    head = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    head = exception_text(exc)
     stack = traceback.extract_tb(exc.__traceback__)[-frames:]
     body = "".join(traceback.format_list(stack)).rstrip()
     return f"{head}\n{body}" if body else head
@@ -229,7 +236,7 @@ class CompiledFSA:
     def undeclared(self, i: int, out: object) -> UndeclaredOutcomeError:
         """The error for state ``i``'s skill returning ``out``, which it did not declare."""
         return UndeclaredOutcomeError(
-            f"state {self.names[i]}: skill {self.skills[i]} returned {out!r}, which is not "
+            f"state {self.names[i]}: skill {self.skills[i]} returned {_shown(out)}, which is not "
             f"one of its declared outcomes {list(self.impls[i][0].spec.outcomes)}; return a "
             "declared outcome or add it to the skill's outcomes"
         )
@@ -239,6 +246,15 @@ class CompiledFSA:
             f"<CompiledFSA {self.fsa.name or ''} states={len(self.names)} "
             f"start={self.fsa.start} backend={self.backend}>"
         )
+
+
+def _shown(value: object) -> str:
+    """``repr(value)`` for a message: at most 80 characters, never raising."""
+    try:
+        text = repr(value)
+    except Exception:  # a value whose repr fails is still named
+        text = f"a {type(value).__name__}"
+    return clip(text, 80)
 
 
 def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> dict[str, float]:
@@ -417,6 +433,7 @@ class FSARun:
         i = self._i
         done = self.steps  # (done < step_limit: the loop below runs at least once)
         n = -done  # + steps: the ticks of this call (n counts an activation's further ticks)
+        steps = done + 1
         try:
             for steps in self._numbers:
                 call, start, access, nxt, limit = table[i]
@@ -456,7 +473,7 @@ class FSARun:
                         out, nxt = TIMEOUT, {TIMEOUT: nxt.get(TIMEOUT, -len(ends))}
                 try:
                     j = nxt[out]
-                except KeyError:
+                except Exception:  # not an outcome (a KeyError), not even hashable (a list)
                     raise self.compiled.undeclared(i, out) from None
                 if record is not None:
                     record(new(step, (
@@ -471,16 +488,17 @@ class FSARun:
                 if not _to_the_end:
                     break
         except Exception as exc:  # (the finally below clears the blackboard's client)
-            self._act = None
-            self.steps = steps
-            self.ticks += steps + n
-            if record is not None:
-                c = self.compiled
-                record(TraceStep(steps, c.names[i], c.skills[i], ERROR, ERROR, self._changes()))
-            self._finish(ERROR, i, exc)
+            self._fail(i, steps, n, exc)
             if self._propagate:
                 raise
             return ERROR
+        except BaseException as exc:
+            # Not an error a skill returns from: sys.exit() in a skill, GeneratorExit, a
+            # Ctrl-C, a caller's time limit. The run ends here in error all the same (its
+            # result says where), and the exception goes on to the caller, who decides.
+            with contextlib.suppress(Exception):
+                self._fail(i, steps, n, exc)
+            raise
         finally:
             bb._client = None
         self.steps = steps
@@ -489,6 +507,17 @@ class FSARun:
         if steps >= self._limit:
             return self._finish(TIMEOUT, i)
         return RUNNING
+
+    def _fail(self, i: int, steps: int, n: int, exc: BaseException) -> None:
+        """End the run in error: state ``i``'s skill raised ``exc`` in step ``steps``."""
+        self._act = None
+        self.steps = steps
+        self.ticks += steps + n
+        if self._record is not None:
+            c = self.compiled
+            self._record(TraceStep(steps, c.names[i], c.skills[i], ERROR, ERROR,
+                                   self._changes()))
+        self._finish(ERROR, i, exc)
 
     def _expire(self, act: Activation) -> Any:
         """The state's time limit ran out: cancel its activation."""

@@ -17,18 +17,20 @@ from __future__ import annotations
 import difflib
 import importlib
 import importlib.util
+import inspect
 import os
 import sys
 import traceback
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from importlib import metadata
 from pathlib import Path
 from types import ModuleType
 
-from .errors import RegistryError, UnknownSkillError
+from .errors import RegistryError, UnknownSkillError, exception_text
 from .fsa import FSA
 from .fsafile import load_fsa
 from .nested import fsa_skill
+from .params import check_declared
 from .skill import Skill, SkillSpec
 
 __all__ = ["DEFAULT_BACKEND", "ENTRY_POINT_GROUP", "Registry"]
@@ -53,6 +55,8 @@ class Registry:
             raise RegistryError(
                 f"registry.add() takes a Skill made by @skill, got {type(s).__name__}"
             )
+        for spec in s.spec.params:  # a spec built by hand, not by @skill, is checked here
+            check_declared(spec, s.name)
         label = backend or s.backend
         if backend is not None and backend != s.backend:
             s = s.with_backend(backend)
@@ -92,15 +96,17 @@ class Registry:
         if isinstance(target, str) and target.endswith((".yaml", ".yml")):
             return [self.add_fsa(target)]
         module = target if isinstance(target, ModuleType) else import_target(target)
+        # the module as the person named it (a file loaded by path has an internal name)
+        where = target if isinstance(target, str) else module.__name__
         before = {(n, b) for n, impls in self._impls.items() for b in impls}
         reg = getattr(module, "register", None)
         if callable(reg) and not isinstance(reg, Skill):
-            reg(self)
+            _call_register(reg, self, f"skills module {where}")
         else:
             found = [v for v in vars(module).values() if isinstance(v, Skill)]
             if not found:
                 raise RegistryError(
-                    f"module {module.__name__} defines no skills: decorate functions with "
+                    f"skills module {where} defines no skills: decorate functions with "
                     "@skill, or define register(registry)"
                 )
             for s in found:
@@ -113,11 +119,20 @@ class Registry:
         """Add the skills of every installed package that advertises them in ``group``."""
         added: list[Skill] = []
         for ep in metadata.entry_points(group=group):
-            obj = ep.load()
+            where = f"entry point {ep.name} = {ep.value} (group {group})"
+            try:
+                obj = ep.load()
+            except KeyboardInterrupt:
+                raise
+            except BaseException as exc:
+                raise RegistryError(
+                    f"{where}: cannot import it: {describe_exception(exc)}; fix or uninstall "
+                    "the package that declares it"
+                ) from exc
             if isinstance(obj, ModuleType):
                 added += self.load_module(obj)
             elif callable(obj):
-                obj(self)
+                _call_register(obj, self, where)
             else:
                 raise RegistryError(
                     f"entry point {ep.name} = {ep.value} in group {group} must be a module "
@@ -193,6 +208,37 @@ def _sig(spec: SkillSpec) -> list[str]:
     ]
 
 
+def _call_register(register: Callable[..., object], registry: Registry, where: str) -> None:
+    """Call a module's ``register(registry)``; whatever goes wrong becomes one
+    :class:`RegistryError` naming ``where`` (the module as the person named it)."""
+    try:
+        inspect.signature(register).bind(registry)
+    except TypeError:
+        raise RegistryError(
+            f"{where}: register{_signature(register)} cannot be called as "
+            "register(registry); define it as `def register(registry): registry.add(...)`"
+        ) from None
+    except ValueError:  # no signature to read (a builtin): the call will tell
+        pass
+    try:
+        register(registry)
+    except KeyboardInterrupt:
+        raise
+    except RegistryError as exc:
+        raise RegistryError(f"{where}: register(registry): {exc}") from exc
+    except BaseException as exc:
+        raise RegistryError(
+            f"{where}: register(registry) raised {describe_exception(exc)}; fix its register()"
+        ) from exc
+
+
+def _signature(fn: Callable[..., object]) -> str:
+    try:
+        return str(inspect.signature(fn))
+    except (TypeError, ValueError):
+        return "(...)"
+
+
 def import_target(target: str) -> ModuleType:
     """Import a dotted module name or a ``.py`` file path.
 
@@ -204,9 +250,9 @@ def import_target(target: str) -> ModuleType:
     """
     try:
         return _import_target(target)
-    except RegistryError:
+    except (RegistryError, KeyboardInterrupt):
         raise
-    except Exception as exc:
+    except BaseException as exc:  # sys.exit() at import too: the module does not load
         raise RegistryError(f"cannot import {target}: {describe_exception(exc)}") from exc
 
 
@@ -217,7 +263,7 @@ def describe_exception(exc: BaseException) -> str:
         return f"{where}{type(exc).__name__}: {exc.msg}"
     frames = traceback.extract_tb(exc.__traceback__)
     where = f"{frames[-1].filename}:{frames[-1].lineno}: " if frames else ""
-    return f"{where}{type(exc).__name__}: {exc}"
+    return f"{where}{exception_text(exc)}"
 
 
 _SOURCE_ROOT = Path(__file__).resolve().parents[1]

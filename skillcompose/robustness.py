@@ -189,9 +189,10 @@ def robustness_sweep(
         fit = np.concatenate([p[0] for p in mine])
         steps = np.concatenate([p[1] for p in mine])
         counts = sum((p[2] for p in mine), Counter[str]())
+        with np.errstate(invalid="ignore", over="ignore"):  # a run in error scores inf
+            mean, std = float(np.mean(fit)), float(np.std(fit, ddof=1)) if reps > 1 else 0.0
         rows.append(SweepRow(
-            setting=setting, value=v, reps=reps, mean=float(np.mean(fit)),
-            std=float(np.std(fit, ddof=1)) if reps > 1 else 0.0, min=float(np.min(fit)),
+            setting=setting, value=v, reps=reps, mean=mean, std=std, min=float(np.min(fit)),
             max=float(np.max(fit)), mean_steps=float(np.mean(steps)),
             solved=sum(p[3] for p in mine), outcomes=dict(sorted(counts.items())),
         ))
@@ -216,13 +217,17 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     import numpy as np
 
     from .executor import compile_fsa
+    from .task import skill_fault
 
     task = _build(job.ref, job.setting, job.value)
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
         compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
     fit, steps, counts = np.empty(n), np.empty(n, dtype=np.int64), Counter[str]()
-    for k, (_, result, _, f) in enumerate(task.each_trial(compiled, job.seed, n, start=job.start)):
+    # a skill that exits ends its run in error; the task's own setup or fitness failing
+    # stops the sweep with a TaskError naming it
+    runs = task.guarded().each_trial(compiled, job.seed, n, start=job.start, catch=skill_fault)
+    for k, (_, result, _, f) in enumerate(runs):
         fit[k], steps[k] = f, result.steps
         counts[result.outcome] += 1
     return fit, steps, counts, sum(task.solved(f) for f in fit.tolist())

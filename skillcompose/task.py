@@ -18,18 +18,26 @@ import numpy as np
 
 from .blackboard import Blackboard
 from .errors import SkillcomposeError
-from .executor import CompiledFSA, RunResult, compile_fsa, trial_rngs
+from .executor import CompiledFSA, FSARun, RunResult, compile_fsa, trial_rngs
 from .fsa import DEFAULT_TERMINALS, ERROR, FSA
 from .registry import Registry, describe_exception, import_target
 
-__all__ = ["Task", "TaskError", "TaskRef", "Trial", "load_task", "trials"]
+__all__ = ["Task", "TaskError", "TaskRef", "Trial", "load_task", "skill_fault", "trials"]
 
 Fitness = Callable[[str, Blackboard, int], float]
 """``fitness(outcome, blackboard, steps) -> float``."""
 
 
 class TaskError(SkillcomposeError):
-    """A task module or its settings are unusable."""
+    """A task module or its settings are unusable.
+
+    ``settings`` holds the settings given to the task when its own code failed (they may be
+    why), so that the command line can say which ``--set`` to check.
+    """
+
+    def __init__(self, message: str, *, settings: Mapping[str, Any] | None = None) -> None:
+        super().__init__(message)
+        self.settings: dict[str, Any] = dict(settings or {})
 
 
 class Trial(NamedTuple):
@@ -73,16 +81,23 @@ def trials(
     """
     for k, rng in enumerate(trial_rngs(seed, count, start), start):
         bb: Blackboard | None = None
+        run: FSARun | None = None
         try:
             with each() if each is not None else nullcontext():
                 bb = setup(rng) if setup is not None else Blackboard()
-                result = compiled.run(bb, rng, trace=trace_first and k == start,
-                                      propagate=propagate)
+                run = FSARun(compiled, bb, rng, trace=trace_first and k == start,
+                             propagate=propagate)
+                run.tick(True)  # to the run's end (as CompiledFSA.run)
+                result = run.result
                 fitness = score(result, bb) if score is not None else math.nan
         except BaseException as exc:
             if catch is None or not catch(exc):
                 raise
-            yield Trial(k, RunResult(ERROR, 0, None, None, exc), bb, worst)
+            # the run's own end when a skill raised it (sys.exit() in a skill, say): its
+            # state, steps and trace; else (the world's setup, the score) an empty one
+            ended = run.result if run is not None and run.done and run.result.error is exc \
+                else RunResult(ERROR, 0, None, None, exc)
+            yield Trial(k, ended, bb, worst)
             continue
         yield Trial(k, result, bb, fitness)
 
@@ -154,6 +169,39 @@ class Task:
             return self.worst
         return float(self.fitness(result.outcome, bb, result.steps))
 
+    def guarded(self) -> Task:
+        """This task with its world setup and fitness guarded: whatever they raise (an
+        exception, ``sys.exit()``; not a Ctrl-C) becomes a :class:`TaskError` naming the
+        task, the place in its code and the settings it was given. Runs and sweeps of the
+        command line use it (the task's code failing is not the FSA's fault); evolution
+        counts such an episode as a fault instead."""
+        where = self.ref.module if self.ref is not None else self.name
+        settings = dict(self.ref.settings) if self.ref is not None else {}
+        setup, fitness = self.setup, self.fitness
+
+        def fail(what: str, exc: BaseException) -> TaskError:
+            given = f" (settings: {_args(settings)})" if settings else ""
+            return TaskError(f"task {where}: {what} raised {describe_exception(exc)}{given}",
+                             settings=settings)
+
+        def guarded_setup(rng: np.random.Generator) -> Blackboard:
+            try:
+                return setup(rng)
+            except KeyboardInterrupt:
+                raise
+            except BaseException as exc:
+                raise fail("setting up the world", exc) from exc
+
+        def guarded_fitness(outcome: str, bb: Blackboard, steps: int) -> float:
+            try:
+                return fitness(outcome, bb, steps)
+            except KeyboardInterrupt:
+                raise
+            except BaseException as exc:
+                raise fail("its fitness", exc) from exc
+
+        return replace(self, setup=guarded_setup, fitness=guarded_fitness)
+
     def each_trial(
         self, compiled: CompiledFSA, seed: int | np.random.SeedSequence | None,
         trials: int | None = None, **options: Any,
@@ -176,6 +224,15 @@ class Task:
         """Mean fitness over ``trials`` (default: the task's) worlds drawn from ``seed``."""
         runs = self.each_trial(compiled, seed, trials or self.trials)
         return float(np.mean([t.fitness for t in runs]))
+
+
+def skill_fault(exc: BaseException) -> bool:
+    """``catch`` for :func:`trials`: true for what a skill stops its run with that is not an
+    error (``sys.exit()``, ``GeneratorExit``, another ``BaseException``), so that the run ends
+    in ``error`` as when a skill raises one; false for a Ctrl-C (``KeyboardInterrupt``) and
+    for errors, which only the world's setup or the fitness let through (an error a skill
+    raises ends its run in ``error`` already)."""
+    return not isinstance(exc, (Exception, KeyboardInterrupt))
 
 
 _trials = trials  # Task's field ``trials`` hides the function inside the class
@@ -205,15 +262,20 @@ def load_task(target: str, **settings: Any) -> Task:
         )
     try:
         task = make(**settings)
+    except KeyboardInterrupt:  # a Ctrl-C: the command's to handle
+        raise
     except SkillcomposeError as exc:
-        raise TaskError(f"task {target}: make_task({_args(settings)}): {exc}") from exc
+        raise TaskError(f"task {target}: make_task({_args(settings)}): {exc}",
+                        settings=settings) from exc
     except TypeError as exc:
         raise TaskError(
-            f"task {target}: make_task() rejected settings {dict(settings)}: {exc}"
+            f"task {target}: make_task() rejected settings {dict(settings)}: {exc}",
+            settings=settings,
         ) from exc
-    except Exception as exc:  # the task's own code failed: say where, not a traceback
+    except BaseException as exc:  # the task's own code failed (or exited): say where
         raise TaskError(
-            f"task {target}: make_task({_args(settings)}) raised {describe_exception(exc)}"
+            f"task {target}: make_task({_args(settings)}) raised {describe_exception(exc)}",
+            settings=settings,
         ) from exc
     if not isinstance(task, Task):
         raise TaskError(f"task {target}: make_task() returned {type(task).__name__}, not Task")
@@ -235,6 +297,9 @@ def parse_settings(items: Sequence[str]) -> dict[str, Any]:
         for conv in (float, int):  # a whole number stays an int
             with suppress(ValueError):
                 val = conv(v)
+        if isinstance(val, float) and not math.isfinite(val):
+            raise TaskError(f"task setting {item!r}: {v!r} is not a finite number; give a "
+                            "number within about ±1.8e308 (no inf, no nan)")
         if v.lower() in ("true", "false"):
             val = v.lower() == "true"
         out[k.strip()] = val
