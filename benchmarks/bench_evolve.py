@@ -9,7 +9,9 @@ worker processes (the same jobs, so the same work and the same fitnesses), best 
 ``--repeats`` back-to-back pairs, next to what this machine gives a CPU-bound loop run by 2
 processes at once over one alone (the ceiling any pool can reach here, measured after each
 pair); (2) whole runs of 25 generations, breeding and checkpoints included, serial vs the
-pool (identical runs); (3) over 10 seeds, generations and wall time to solve.
+pool (identical runs); (3) over 10 seeds, generations and wall time to solve. ``--ray``
+adds a row on a local Ray cluster to (1), and whole runs beside Ray, streaming and taking
+each generation whole (``--ray-only``: those alone), after (1).
 """
 
 from __future__ import annotations
