@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -343,6 +344,13 @@ def handle(args: argparse.Namespace) -> int:
         print(f"skillcompose evolve: error: {printable(exc)}{set_hint(args, exc)}",
               file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: say how to go on, when there is a run to go on with
+        where = args.resume or args.out
+        if where is not None and RunDir(where).checkpoint.is_file():
+            print(f"interrupted; continue the run with: skillcompose evolve --resume "
+                  f"{shlex.quote(str(where))}", file=sys.stderr)
+            return 130
+        raise
     if getattr(args, "json", False):
         print_json(summary_document(result, task.name))
         _warn(result, cfg, task)

@@ -202,6 +202,24 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
     assert not list((tmp_path / "b").glob(".*.tmp-*"))
 
 
+def test_ctrl_c_says_how_to_continue_the_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import evolve.algorithm as algorithm
+
+    def interrupted(*args: object, **kwargs: object) -> object:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(algorithm, "simplify", interrupted)
+    d = tmp_path / "my run"
+    assert skillcompose_main(["evolve", *TOY, *SMALL, "--generations", "1", "--out", str(d)]) \
+        == 130
+    assert capsys.readouterr().err.splitlines()[-1:] == [
+        f"interrupted; continue the run with: skillcompose evolve --resume '{d}'"]
+    assert skillcompose_main(["evolve", *TOY, *SMALL, "--generations", "1"]) == 130  # no run
+    assert capsys.readouterr().err.splitlines()[-1:] == ["interrupted"]
+
+
 def test_no_simplify_is_part_of_the_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     a, b = tmp_path / "a", tmp_path / "b"
     args = [*TOY, *SMALL, "--generations", "4", "--checkpoint-every", "2", "--no-simplify"]
