@@ -271,14 +271,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     registry, task = _load(args)
     if not len(registry):
         raise SkillcomposeError(
-            f"{args.file}: no skills loaded; give --skills MODULE or --task TASK"
+            f"{one_line(str(args.file))}: no skills loaded; give --skills MODULE or --task TASK"
         )
     # with a task, the task's step limit (as in evolution); else the file's
     compiled = task.compile(fsa, args.backend) if task is not None else \
         compile_fsa(fsa, registry, args.backend)
     if task is not None and fsa.step_limit != task.step_limit:
-        note(args, f"{args.file}: step limit {task.step_limit} from task {task.name} (the "
-             f"file's {fsa.step_limit} applies when it runs without --task)")
+        note(args, f"{one_line(str(args.file))}: step limit {task.step_limit} from task "
+             f"{task.name} (the file's {fsa.step_limit} applies when it runs without --task)")
     results = []
     fitness: list[float] = []
     # on a terminal, once it takes a while; never with -q
@@ -329,7 +329,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             "errors": {"count": len(errors), "first": first},
         })
     else:
-        print(f"{args.file}: {s['trials']} run(s), seed {args.seed}, backend "
+        print(f"{one_line(str(args.file))}: {s['trials']} run(s), seed {args.seed}, backend "
               f"{compiled.backend}")
         width = max(len(o) for o in s["outcomes"])
         for outcome, count in s["outcomes"].items():
@@ -347,7 +347,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     if len(errors) == len(results):
-        print(f"skillcompose run: error: every run of {args.file} ended in error",
+        print(f"skillcompose run: error: every run of {one_line(str(args.file))} ended in error",
               file=sys.stderr)
         return 1
     return 0
@@ -392,7 +392,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
                     "skills_checked": skills_checked, "unreachable": list(unreachable),
                     "traps": list(traps), "problems": []})
         return 0
-    print(f"{args.file}: valid, {len(fsa.states)} states, start {fsa.start}; {checked}")
+    print(f"{one_line(str(args.file))}: valid, {len(fsa.states)} states, start {fsa.start}; "
+          f"{checked}")
     if unreachable:
         print(f"  warning: unreachable from {fsa.start}: {', '.join(unreachable)} "
               "(they never run; delete them or route an outcome to them)")

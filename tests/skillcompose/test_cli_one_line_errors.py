@@ -98,3 +98,18 @@ def test_an_fsa_built_in_python_reports_on_one_line_too() -> None:
     with pytest.raises(FSAValidationError) as refused:
         FSA({"A": State("X", {}, {"ok": "B\nC"})}, "A")
     assert "\n" not in str(refused.value)
+
+
+def test_results_naming_the_file_escape_it_too(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Not only errors: the lines `validate` and `run` print name the file escaped."""
+    odd = tmp_path / "a\x1b[31m\nb.yaml"
+    odd.write_text(Path(TOY).read_text())
+    shown = str(odd).replace("\x1b", "\\x1b").replace("\n", "\\n")
+    assert main(["validate", str(odd), "--task", "examples.toy_task"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{shown}: valid, ") and out.count("\n") == 1, out
+    assert main(["run", str(odd), "--task", "examples.toy_task", "--trials", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{shown}: 2 run(s), seed ") and "\x1b" not in out, out
