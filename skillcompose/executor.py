@@ -413,7 +413,7 @@ class FSARun:
                 bb._client = access
                 try:
                     out = act.tick()
-                except Exception as exc:
+                except BaseException as exc:  # handed to the loop, which ends the run
                     out = _Raised(exc)
                 finally:
                     bb._client = None

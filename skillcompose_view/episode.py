@@ -92,7 +92,12 @@ def run_episode(path: Path, task_target: str, seed: int = 0,
     status = RUNNING
     seen = 0
     while status == RUNNING and seen < MAX_STEPS:
-        status = run.tick()
+        try:
+            status = run.tick()
+        except KeyboardInterrupt:
+            raise
+        except BaseException:  # sys.exit() in a skill: the run has ended in error, and its
+            status = run.result.outcome  # last step says where; the viewer goes on
         trace = run.trace or ()
         for ev in trace[seen:]:
             frames.append(Frame(

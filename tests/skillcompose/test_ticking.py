@@ -329,3 +329,28 @@ def test_preemption_at_every_tick_covers_active_idle_and_finished_runs() -> None
                 seen["idle"] += 1
                 assert total == 0 and result.outcome == "preempted"
     assert min(seen.values()) >= 5, seen
+
+
+@pytest.mark.parametrize("traced", [False, True])
+def test_a_long_running_skill_that_exits_between_ticks_ends_the_run_in_error(
+    traced: bool,
+) -> None:
+    """sys.exit() in a later tick of a long-running skill (the tick-wise engine's fast path)
+    ends the run in error, saying where, before the exit goes on to the caller."""
+    import sys
+
+    @skill
+    def Quit(bb: Blackboard, rng: np.random.Generator) -> Generator[
+            str, None, Literal["success"]]:
+        yield RUNNING
+        sys.exit(3)
+
+    reg = Registry()
+    reg.add(Quit)
+    fsa = FSA(states={"Q": State("Quit", transitions={"success": "success"})}, start="Q")
+    run = compile_fsa(fsa, reg).start(Blackboard(), np.random.default_rng(0), trace=traced)
+    assert run.tick() == RUNNING
+    with pytest.raises(SystemExit):
+        run.tick()
+    assert run.done and run.result.outcome == "error"
+    assert isinstance(run.result.error, SystemExit) and run.result.error.code == 3

@@ -207,3 +207,13 @@ def test_pipes_in_the_folder_viewed_never_hang_the_viewer(tmp_path: Path) -> Non
         assert read_live(run / "patrol.live.json") is None
     finally:
         signal.alarm(0)
+
+
+def test_an_episode_whose_skill_exits_ends_in_error(tmp_path: Path) -> None:
+    """A replayed skill calling sys.exit() ends the episode in error; the viewer goes on."""
+    fsa = tmp_path / "quit.fsa.yaml"
+    fsa.write_text("format: 1\nstart: F\nstates:\n  F:\n    skill: Fault\n"
+                   "    transitions: {success: success, failure: failure}\n")
+    episode = run_episode(fsa, "tests.evolve.faulty_task", 0, {"fault": "exit"})
+    assert episode.outcome == "error"
+    assert [(f.state, f.outcome) for f in episode.frames[1:]] == [("F", "error")]
