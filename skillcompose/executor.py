@@ -275,7 +275,7 @@ def _check_limits(fsa: FSA, names: list[str], limits: Mapping[str, float]) -> di
 class _Raised(NamedTuple):
     """What a running activation's tick raised, handed from the hot path to the loop."""
 
-    exc: Exception
+    exc: BaseException
 
 
 _EXPIRED: Any = object()
