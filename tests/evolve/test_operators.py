@@ -164,16 +164,18 @@ def test_random_genomes_run(toy: Task, toy_skills: SkillSet) -> None:
     assert res.error is None
 
 
+BAD_SEED = (  # an unknown skill in A, PickBlock's failure unrouted in B
+    "format: 1\nstart: A\nstates:\n  A:\n    skill: Fly\n    transitions: {success: B}\n"
+    "  B:\n    skill: PickBlock\n    transitions: {success: success}\n"
+)
+
+
 def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
     from evolve import SeedFSAError
     from skillcompose import loads_fsa
 
-    text = (
-        "format: 1\nstart: A\nstates:\n  A:\n    skill: Fly\n    transitions: {success: B}\n"
-        "  B:\n    skill: PickBlock\n    transitions: {success: success}\n"
-    )
     with pytest.raises(SeedFSAError) as err:
-        Genome.from_fsa(loads_fsa(text, "bad.yaml"), toy_skills)
+        Genome.from_fsa(loads_fsa(BAD_SEED, "bad.yaml"), toy_skills)
     msg = str(err.value)
     assert "bad.yaml:4" in msg and "state A" in msg and "'Fly'" in msg
     assert "failure" in msg and "state B" in msg  # the unrouted outcome of PickBlock
@@ -184,12 +186,8 @@ def test_seed_fsa_errors_keep_one_problem_per_line(toy_skills: SkillSet) -> None
     from skillcompose import loads_fsa
     from skillcompose.errors import printable
 
-    text = (
-        "format: 1\nstart: A\nstates:\n  A:\n    skill: Fly\n    transitions: {success: B}\n"
-        "  B:\n    skill: PickBlock\n    transitions: {success: success}\n"
-    )
     with pytest.raises(SeedFSAError) as err:
-        Genome.from_fsa(loads_fsa(text, "bad\n  seed\x1b.yaml"), toy_skills)
+        Genome.from_fsa(loads_fsa(BAD_SEED, "bad\n  seed\x1b.yaml"), toy_skills)
     lines = printable(err.value).split("\n")
     assert lines[0] == "cannot seed evolution from this FSA:" and len(lines) == 3
     assert all(line.startswith("  bad\\n  seed\\x1b.yaml:") for line in lines[1:])
