@@ -18,7 +18,6 @@ import difflib
 import importlib
 import importlib.util
 import inspect
-import os
 import sys
 import traceback
 from collections.abc import Callable, Iterable, Iterator
@@ -30,6 +29,7 @@ from .errors import RegistryError, UnknownSkillError, exception_text
 from .fsa import FSA
 from .fsafile import load_fsa
 from .nested import fsa_skill
+from .origins import use_import_path
 from .params import check_declared
 from .skill import Skill, SkillSpec
 
@@ -266,9 +266,6 @@ def describe_exception(exc: BaseException) -> str:
     return f"{where}{exception_text(exc)}"
 
 
-_SOURCE_ROOT = Path(__file__).resolve().parents[1]
-
-
 def _import_target(target: str) -> ModuleType:
     if target.endswith(".py") or "/" in target or "\\" in target:
         path = Path(target)
@@ -291,15 +288,9 @@ def _import_target(target: str) -> ModuleType:
             del sys.modules[mod_name]
             raise
         return module
-    cwd = os.getcwd()
-    if cwd not in sys.path:  # as `python -m` does: modules next to the user are found
-        sys.path.append(cwd)
-    top = target.split(".", 1)[0]
-    root = str(_SOURCE_ROOT)
-    if root not in sys.path and importlib.util.find_spec(top) is None and (
-        (_SOURCE_ROOT / top / "__init__.py").is_file() or (_SOURCE_ROOT / f"{top}.py").is_file()
-    ):
-        sys.path.append(root)  # a source checkout's own packages (examples.*)
+    # the current directory, as `python -m` has it, and a source checkout's own packages
+    # (examples.*): the path skillcompose.origins checks before a run's module is imported
+    use_import_path(target.split(".", 1)[0])
     try:
         return importlib.import_module(target)
     except ModuleNotFoundError as exc:

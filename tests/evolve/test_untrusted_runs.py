@@ -119,6 +119,28 @@ def test_a_task_module_inside_the_run_directory_is_never_imported(
     assert not marker.exists()
 
 
+@pytest.mark.parametrize("module", ["received.evil", "received.ruamel.evil", "ruamel.evil"])
+def test_a_task_module_reaching_inside_through_a_package_is_never_imported(
+    run_dir: Path, module: str, monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Through the package above the run directory, through a namespace package inside
+    it, or through one imported already (``ruamel``) whose folders the import computes
+    afresh with the current directory on the path: refused, nothing imported."""
+    import ruamel.yaml  # noqa: F401 - imported already, as in the command line's process
+
+    from evolve.resume import load_recorded_task
+
+    marker = run_dir / "RAN"
+    (run_dir / "ruamel").mkdir()
+    for path in (run_dir / "evil.py", run_dir / "ruamel" / "evil.py"):
+        path.write_text(EVIL.format(marker=str(marker)))
+    monkeypatch.chdir(run_dir if module == "ruamel.evil" else run_dir.parent)
+    record = RunDir(run_dir).load_checkpoint()["run"]
+    with pytest.raises(CheckpointError, match="inside the run directory"):
+        load_recorded_task({**record, "task_module": module}, run_dir)
+    assert not marker.exists()
+
+
 def test_an_edited_run_json_does_not_resume_as_another_task(
     run_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

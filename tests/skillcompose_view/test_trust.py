@@ -55,6 +55,28 @@ def test_which_task_modules_the_viewer_may_import(tmp_path: Path) -> None:
     assert not (tmp_path / "run" / "evil.py.RAN").exists()  # nothing was imported
 
 
+def test_code_inside_the_folder_is_found_at_every_level_of_a_name(tmp_path: Path) -> None:
+    """A dotted name reaching into the folder viewed through a package above it
+    (``runs.theirrun.evil`` with ``runs`` in the current directory), or through a namespace
+    package imported already (``ruamel``, whose folders an import computes afresh once
+    the current directory is on the path): refused, and nothing imported."""
+    import ruamel.yaml  # noqa: F401 - a namespace package this process has imported
+
+    run = tmp_path / "runs" / "theirrun"
+    (run / "ruamel").mkdir(parents=True)
+    for module in (run / "evil.py", run / "ruamel" / "evil.py"):
+        module.write_text(EVIL)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(tmp_path)
+        refused = task_refusal(ViewerConfig(root=run), "runs.theirrun.evil", None)
+        assert refused is not None and "inside the folder being viewed" in refused
+        mp.chdir(run)  # viewing the folder one is in: `skillcompose view .`
+        refused = task_refusal(ViewerConfig(root=run), "ruamel.evil", None)
+        assert refused is not None and "inside the folder being viewed" in refused
+        assert task_refusal(ViewerConfig(root=run), "ruamel.yaml", None) is None
+    assert not list(run.rglob("*.RAN"))
+
+
 def _get(url: str, headers: dict[str, str] | None = None) -> str:
     request = urllib.request.Request(url, headers=headers or {})
     with urllib.request.urlopen(request, timeout=60) as r:
