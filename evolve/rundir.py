@@ -36,6 +36,7 @@ import contextlib
 import hashlib
 import json
 import os
+import stat
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -117,7 +118,27 @@ class RunDir:
         if self._lock is not None:
             return
         self.path.mkdir(parents=True, exist_ok=True)
-        f = open(self.lock_file, "a+", encoding="utf-8")  # noqa: SIM115 - held open on purpose
+        # never through a link (a directory from elsewhere could point .lock at a file of
+        # yours, which writing the process id would destroy), never waiting on a pipe
+        flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | \
+            getattr(os, "O_NONBLOCK", 0)
+        what = "is not a file"
+        try:
+            fd = os.open(self.lock_file, flags, 0o666)
+        except OSError as exc:
+            fd = -1
+            what = "is a link" if os.path.islink(self.lock_file) else \
+                f"cannot be opened: {exc.strerror}"
+        kind = None if fd < 0 or stat.S_ISREG(os.fstat(fd).st_mode) else \
+            not_a_file(self.lock_file) or "not a file"
+        if fd < 0 or kind is not None:
+            if fd >= 0:
+                os.close(fd)
+            raise CheckpointError(
+                f"{self.lock_file} {f'is {kind}' if kind else what}, where evolve keeps its "
+                "lock file; remove it, then run again"
+            )
+        f = open(fd, "a+", encoding="utf-8")  # noqa: SIM115 - held open on purpose
         if fcntl is not None:
             try:
                 # a POSIX record lock: held by this process only, not by the processes it

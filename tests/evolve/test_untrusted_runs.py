@@ -252,6 +252,35 @@ def test_a_folder_where_a_run_file_goes_is_refused_before_any_work(
     assert _resume(run_dir, capsys)[0] == 0
 
 
+@pytest.mark.skipif(not hasattr(os, "O_NOFOLLOW"), reason="no O_NOFOLLOW here")
+def test_a_lock_file_that_is_a_link_or_a_pipe_is_refused_and_nothing_written(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A received directory whose .lock points at a file of yours: taking the lock would
+    write a process id over it. Refused, on resume and on a new run; a pipe too."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    signal.alarm(60)  # a pipe opened to wait for a writer would hang: fail instead
+    try:
+        for make in (lambda p: p.symlink_to(notes), os.mkfifo,
+                     lambda p: p.symlink_to("/dev/zero")):
+            (run_dir / ".lock").unlink(missing_ok=True)
+            make(run_dir / ".lock")
+            err = _one_line_error(*_resume(run_dir, capsys))
+            assert f"{run_dir / '.lock'} is a" in err and "remove it, then run again" in err
+            fresh = tmp_path / f"new{len(list(tmp_path.iterdir()))}"
+            fresh.mkdir()
+            (fresh / ".lock").symlink_to(notes)
+            code = skillcompose_main(["evolve", *ARGS, "--out", str(fresh)])
+            assert code == 2 and "is a link, where evolve keeps its lock file" in \
+                capsys.readouterr().err
+        assert notes.read_text() == "my notes\n"
+        (run_dir / ".lock").unlink()
+        assert _resume(run_dir, capsys)[0] == 0
+    finally:
+        signal.alarm(0)
+
+
 def test_every_single_bit_flip_is_detected(run_dir: Path) -> None:
     rd = RunDir(run_dir)
     data = (run_dir / "checkpoint.json").read_bytes()
