@@ -50,7 +50,15 @@ from .evaluation import (
 )
 from .genome import Genome, GenomeCompiler, SkillSet
 from .operators import crossover, initialize, mutate
-from .resume import FREE_SETTINGS, MEANING, check_record, differences, normalise, run_record
+from .resume import (
+    FREE_SETTINGS,
+    MEANING,
+    check_record,
+    differences,
+    normalise,
+    run_record,
+    without_free,
+)
 from .rundir import RunDir
 from .simplify import simplify
 
@@ -941,11 +949,15 @@ def _resumed(
     where = str(rundir.checkpoint)
     record = check_record(checkpoint.get("run"), where)
     info = rundir.load_run_info()
-    edited = [k for k in MEANING if normalise(info.get(k)) != record[k]]
+    def meaning(k: str, v: Any) -> Any:
+        return without_free(normalise(v)) if k == "config" else normalise(v)
+
+    edited = [k for k in MEANING if meaning(k, info.get(k)) != meaning(k, record[k])]
     if edited:
+        found = differences({k: meaning(k, record[k]) for k in edited},
+                            {k: meaning(k, info.get(k)) for k in edited})
         raise CheckpointError(
-            f"{rundir.run_json} differs from the run's checkpoint in "
-            f"{', '.join(differences(record, {k: info.get(k) for k in edited}))}; "
+            f"{rundir.run_json} differs from the run's checkpoint in {', '.join(found)}; "
             "a run cannot change its meaning on resume: restore run.json, or start a new run "
             "with the settings you want"
         )

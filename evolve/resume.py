@@ -37,6 +37,7 @@ __all__ = [
     "load_recorded_task",
     "normalise",
     "run_record",
+    "without_free",
 ]
 
 MEANING = ("task", "task_module", "task_settings", "seed", "seed_fsa", "config", "simplify",
@@ -123,13 +124,28 @@ def check_record(record: Any, where: str) -> dict[str, Any]:
 
 
 def differences(recorded: Mapping[str, Any], given: Mapping[str, Any]) -> list[str]:
-    """``key: given (the run has recorded)`` for each key of ``given`` that differs."""
+    """``key: given (the run has recorded)`` for each key of ``given`` that differs; for
+    two objects, each of their keys that differs (``config.trials 5 (the run has 3)``)."""
     out = []
     for key, value in given.items():
         was = recorded.get(key)
-        if normalise(value) != normalise(was):
+        if normalise(value) == normalise(was):
+            continue
+        if isinstance(value, Mapping) and isinstance(was, Mapping):
+            out += [f"{key}.{inner}" for inner in differences(
+                was, {k: value.get(k) for k in sorted(set(value) | set(was), key=str)})]
+        else:
             out.append(f"{key} {_short(value)} (the run has {_short(was)})")
     return out
+
+
+def without_free(record_value: Any) -> Any:
+    """A run's ``config`` without the settings a resume may change (:data:`FREE_SETTINGS`):
+    what ``run.json`` and the checkpoint must agree on (a run killed between writing the one
+    and the other, as it is extended, may hold two budgets)."""
+    if not isinstance(record_value, Mapping):
+        return record_value
+    return {k: v for k, v in record_value.items() if k not in FREE_SETTINGS}
 
 
 def _short(v: Any) -> str:

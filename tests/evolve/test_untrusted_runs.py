@@ -281,6 +281,22 @@ def test_a_lock_file_that_is_a_link_or_a_pipe_is_refused_and_nothing_written(
         signal.alarm(0)
 
 
+def test_a_run_killed_as_it_was_extended_resumes(
+    run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``run.json`` takes a longer budget before the checkpoint does: a kill between the two
+    leaves them differing only in what a resume may change, and the run resumes; a real
+    difference is named key by key."""
+    rd = RunDir(run_dir)
+    info = rd.load_run_info()
+    rd.write_run_info({**info, "config": {**info["config"], "generations": 50}})
+    assert _resume(run_dir, capsys)[0] == 0
+    info = rd.load_run_info()
+    rd.write_run_info({**info, "config": {**info["config"], "trials": 7}})
+    err = _one_line_error(*_resume(run_dir, capsys))
+    assert "run.json differs from the run's checkpoint in config.trials 7 (the run has " in err
+
+
 def test_every_single_bit_flip_is_detected(run_dir: Path) -> None:
     rd = RunDir(run_dir)
     data = (run_dir / "checkpoint.json").read_bytes()
