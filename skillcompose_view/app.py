@@ -364,10 +364,13 @@ def _fsa_page(config: ViewerConfig, path: str, task: str, request: str | None = 
     options = {str(f): _rel(config, f) for f in files}
     if chosen is not None:
         options.setdefault(str(chosen), _rel(config, chosen))
+    # a task this page will not import is not carried to the next one either (another
+    # site's link would otherwise need only one click on the viewer's own controls)
+    carried = task if task and task_refusal(config, task, request) is None else ""
     with ui.row().classes("items-center gap-4 w-full"):
         ui.select(options, value=str(chosen) if chosen else None, label="FSA file",
                   on_change=lambda e: ui.navigate.to(
-                      "/fsa?" + urlencode({"path": e.value, "task": task}))) \
+                      "/fsa?" + urlencode({"path": e.value, "task": carried}))) \
             .classes("min-w-[28rem]").props("data-testid=fsa-select")
     if chosen is None:
         ui.label(f"No FSA file under {_shown(config, config.root)} (files named *.fsa.yaml "
@@ -479,8 +482,9 @@ async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, se
         file_in = ui.select({str(f): _rel(config, f) for f in files} | (
             {chosen: chosen} if chosen and chosen not in {str(f) for f in files} else {}),
             value=chosen or None, label="FSA file").classes("min-w-[24rem]")
-        task_in = ui.input("task module", value=target).classes("w-56") \
-            .props("data-testid=task-input")
+        refusal = task_refusal(config, target, request) if target else None
+        task_in = ui.input("task module", value="" if refusal else target).classes("w-56") \
+            .props("data-testid=task-input")  # a refused task is not offered to Run
         set_in = ui.input("settings (name=value, ...)", value=setting_text).classes("w-56")
         backend_in = ui.input("backend", value=backend, placeholder="the task's").classes("w-36")
         seed_in = ui.number("seed", value=int(seed) if seed.isdigit() else 0, min=0,
@@ -501,7 +505,6 @@ async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, se
                  "files there") \
             .classes("text-red-700").props("data-testid=error")
         return
-    refusal = task_refusal(config, target, request)
     if refusal is not None:
         ui.label(refusal).classes("text-orange-700").props("data-testid=task-refused")
         return
@@ -731,6 +734,14 @@ def _live_card(holder: Any, config: ViewerConfig, path: Path) -> dict[str, Any]:
 # ---------------------------------------------------------------------------------------
 def build(config: ViewerConfig) -> None:
     """Register the pages (and the PR2's meshes as static files) for ``config``."""
+    @app.middleware("http")
+    async def not_in_frames(request: Request, call_next: Any) -> Any:
+        # no page of the viewer inside another site's page, where its controls could be
+        # clicked on that site's behalf
+        response = await call_next(request)
+        response.headers["X-Frame-Options"] = "DENY"
+        response.headers["Content-Security-Policy"] = "frame-ancestors 'none'"
+        return response
     @ui.page("/", title="skillcompose view: runs")
     def runs_page() -> None:
         _safe("runs", lambda: _runs_page(config))

@@ -111,6 +111,17 @@ def test_opening_pages_runs_no_code_that_came_with_the_runs(tmp_path: Path) -> N
         page = _get(viewer.url + "/fsa?path=ours/best.yaml&task=examples.toy_task",
                     {"Sec-Fetch-Site": "cross-site"})
         assert "another site" in page
+        # the refused task is not offered to the page's Run button either
+        page = _get(viewer.url + "/replay?path=ours/best.yaml&task=examples.toy_task",
+                    {"Sec-Fetch-Site": "cross-site"})
+        assert "another site" in page and '"value":"",' in page
+        assert '"value":"examples.toy_task"' not in page
+        page = _get(viewer.url + "/replay?path=ours/best.yaml&task=examples.toy_task",
+                    {"Sec-Fetch-Site": "same-origin"})
+        assert '"value":"examples.toy_task"' in page
+        with urllib.request.urlopen(viewer.url + "/", timeout=60) as r:  # never in a frame
+            assert r.headers["X-Frame-Options"] == "DENY"
+            assert r.headers["Content-Security-Policy"] == "frame-ancestors 'none'"
         page = _get(viewer.url + "/fsa?path=ours/best.yaml")
         assert "checked against task toy_fetch" in page
     finally:
