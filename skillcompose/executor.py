@@ -36,6 +36,7 @@ from .errors import (
     UndeclaredOutcomeError,
     clip,
     exception_text,
+    one_line,
 )
 from .fsa import ERROR, FSA, PREEMPTED, TIMEOUT
 from .params import time_limit_problem
@@ -99,10 +100,13 @@ class RunResult(NamedTuple):
 
 
 def error_summary(exc: BaseException, frames: int = 3) -> str:
-    """``Type: message`` and, below it, the innermost ``frames`` frames of its traceback."""
-    head = exception_text(exc)
+    """``Type: message`` and, below it, the innermost ``frames`` frames of its traceback;
+    each line escaped (:func:`~skillcompose.errors.one_line`): a message's line breaks and
+    control characters never reach the terminal as they are."""
+    head = one_line(exception_text(exc))
     stack = traceback.extract_tb(exc.__traceback__)[-frames:]
-    body = "".join(traceback.format_list(stack)).rstrip()
+    body = "\n".join(one_line(line) for line in
+                     "".join(traceback.format_list(stack)).rstrip().split("\n"))
     return f"{head}\n{body}" if body else head
 
 

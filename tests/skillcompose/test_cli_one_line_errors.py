@@ -113,3 +113,22 @@ def test_results_naming_the_file_escape_it_too(
     assert main(["run", str(odd), "--task", "examples.toy_task", "--trials", "2"]) == 0
     out = capsys.readouterr().out
     assert out.startswith(f"{shown}: 2 run(s), seed ") and "\x1b" not in out, out
+
+
+def test_the_first_error_of_runs_prints_its_message_escaped(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A skill's exception message with line breaks and escape sequences, in the report of
+    runs that ended in error: escaped as every error line is."""
+    (tmp_path / "loud.py").write_text(
+        "from typing import Literal\nfrom skillcompose import skill\n@skill()\n"
+        "def loud(bb, rng) -> Literal['success']:\n"
+        "    raise RuntimeError('line1\\nline2\\x1b[2J\\x07')\n")
+    fsa = tmp_path / "l.yaml"
+    fsa.write_text("format: 1\nstart: A\nstates: {A: {skill: Loud, transitions: "
+                   "{success: success}}}\n")
+    assert main(["run", str(fsa), "--skills", str(tmp_path / "loud.py"), "--trials", "2"]) == 1
+    captured = capsys.readouterr()
+    text = captured.out + captured.err
+    assert "RuntimeError: line1\\nline2\\x1b[2J\\x07" in text
+    assert "\x1b" not in text and "\x07" not in text
