@@ -199,7 +199,7 @@ class RunDir:
                     )
             held = [p.name for p in (self.run_json, self.history, self.best_yaml,
                                      self.best_evolved_yaml) if os.path.lexists(p)]
-            if held:
+            if held and not self._killed_as_it_started(held):
                 raise CheckpointError(
                     f"{self.path} holds {', '.join(held)} but no checkpoint: another run's "
                     "files or yours, which a new run would overwrite; choose another --out "
@@ -207,6 +207,21 @@ class RunDir:
                 )
         self.write_run_info(run_info)
         _atomic_write(self.history, b"")
+
+    def _killed_as_it_started(self, held: list[str]) -> bool:
+        """Whether the run files here are only those of a run killed before its first
+        checkpoint (``run.json`` as evolve writes it, an empty history): nothing anyone
+        would lose, and a new run may take the directory."""
+        if not set(held) <= {self.run_json.name, self.history.name}:
+            return False
+        try:
+            if self.history.name in held and read_limited(self.history, 0):
+                return False
+            info = json.loads(read_limited(self.run_json, MAX_RUN_JSON_BYTES))
+        except (OSError, ValueError, RecursionError):
+            return False
+        return isinstance(info, dict) and {"task", "seed", "config"} <= set(info) and \
+            "result" not in info
 
     def write_run_info(self, run_info: Mapping[str, Any]) -> None:
         _atomic_write(self.run_json, (json.dumps(run_info, indent=2) + "\n").encode())

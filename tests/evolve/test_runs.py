@@ -154,6 +154,16 @@ def test_a_new_run_refuses_a_folder_holding_run_files_without_a_checkpoint(
         (tmp_path / "torn" / "history.jsonl").write_text("")
         evolve(_task(), CFG, seed=4, out_dir=tmp_path / "torn")
     assert (tmp_path / "torn" / "run.json").read_text() == "{}"
+    # what a run killed as it started leaves (run.json, an empty history): nothing anyone
+    # would lose, so the same command may start it again there
+    done = evolve(_task(), CFG, seed=4, out_dir=tmp_path / "done")
+    info = json.loads((tmp_path / "done" / "run.json").read_text())
+    (tmp_path / "killed").mkdir()
+    (tmp_path / "killed" / "run.json").write_text(json.dumps(
+        {k: v for k, v in info.items() if k != "result"}))
+    (tmp_path / "killed" / "history.jsonl").write_text("")
+    again = evolve(_task(), CFG, seed=4, out_dir=tmp_path / "killed")
+    assert [(r.best, r.mean) for r in again.history] == [(r.best, r.mean) for r in done.history]
 
 
 def test_resume_refuses_settings_that_change_the_run(
