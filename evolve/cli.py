@@ -460,7 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    with json_output(bool(getattr(args, "json", False))):  # standard output: the document
+    with json_output(bool(getattr(args, "json", False)), for_good=argv is None):
         return int(args.func(args))
 
 

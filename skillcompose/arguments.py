@@ -301,7 +301,7 @@ if hasattr(os, "register_at_fork"):
 
 
 @contextlib.contextmanager
-def json_output(active: bool = True) -> Iterator[None]:
+def json_output(active: bool = True, for_good: bool = False) -> Iterator[None]:
     """Keep standard output for the one JSON document of ``--json`` while the block runs.
 
     Everything else written there goes to standard error: ``print`` in a task or a skill
@@ -309,6 +309,9 @@ def json_output(active: bool = True) -> Iterator[None]:
     descriptor 1, what C code, child processes and forked workers write to that
     descriptor (it is pointed at standard error; the document goes to a copy of the real
     one). :func:`print_json` writes the document there. ``active=False`` changes nothing.
+    ``for_good``: the process ends after the block (the command line's own run), so
+    standard output is not given back: what runs after (``atexit`` handlers, threads still
+    going) writes to standard error, never after the document.
     """
     if not active:
         yield
@@ -331,12 +334,14 @@ def json_output(active: bool = True) -> Iterator[None]:
         _DOCUMENT_STREAMS.pop()
         with contextlib.suppress(AttributeError, OSError, ValueError):
             sys.stderr.flush()
-        sys.stdout = real
+        if not (for_good and kept is not None):
+            sys.stdout = real
         if kept is not None and copy is not None:
             _KEPT_FDS.remove(kept)
             with contextlib.suppress(OSError, ValueError):  # a reader gone away
                 copy.close()
-            os.dup2(kept, 1)
+            if not for_good:
+                os.dup2(kept, 1)
             os.close(kept)
 
 

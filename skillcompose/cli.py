@@ -169,7 +169,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         # --json: standard output holds the document only; what tasks and skills print
         # goes to standard error
-        with json_output(bool(getattr(args, "json", False))), _one_line_warnings(prog):
+        # (run as the program, argv from the command line: the process ends after it)
+        with json_output(bool(getattr(args, "json", False)), for_good=argv is None), \
+                _one_line_warnings(prog):
             status = int(func(args))
         note(args, f"{prog}: exit status {status} after {time.perf_counter() - started:.2f} s",
              level=1)

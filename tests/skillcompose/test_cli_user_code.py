@@ -305,6 +305,7 @@ def test_unhashable_and_huge_returns_get_the_undeclared_message(value: object,
 
 # -- #8: --json: standard output holds the document only ------------------------------------
 NOISY_TASK = """\
+import atexit
 import os
 from dataclasses import replace
 from typing import Literal
@@ -314,6 +315,7 @@ from skillcompose import skill
 
 print("printed at import")
 os.write(1, b"fd 1 at import\\n")
+atexit.register(lambda: (print("printed at exit"), os.write(1, b"fd 1 at exit\\n")))
 
 
 @skill()
@@ -368,6 +370,7 @@ def test_json_output_holds_only_the_document_when_user_code_prints(
         assert "fd 1 by setup" in err
     if command == "run":
         assert err.count("printed by a skill") == 2 and err.count("fd 1 by a skill") == 2
+    assert "printed at exit" in err and "fd 1 at exit" in err  # after the document: not
 
 
 def test_json_keeps_the_document_on_a_python_level_standard_output(tmp_path: Path) -> None:
