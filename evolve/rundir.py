@@ -81,10 +81,11 @@ def _read(path: Path, limit: int, fix: str) -> bytes:
     """A run file's bytes, or one line saying why not: missing, not a regular file (a pipe
     would wait for ever, a device never end), larger than ``limit``."""
     try:
-        data = read_limited(path, limit)
+        too_large = os.stat(path).st_size > limit  # said without reading gigabytes
+        data = b"" if too_large else read_limited(path, limit)
     except OSError as exc:
         raise CheckpointError(f"{path} cannot be read: {exc.strerror or exc}; {fix}") from None
-    if len(data) > limit:
+    if too_large or len(data) > limit:
         raise CheckpointError(f"{path} is larger than {limit >> 20} MiB, more than any run "
                               f"writes there; {fix}")
     return data
