@@ -1209,8 +1209,9 @@ class RayEvaluator:
 
         tail = least(n, self.chunks_per_worker * max(1, len(self._actors)))
         busy = [0.0, 0]  # seconds the actors spent on jobs, and jobs, this generation
-        # while streaming: chunks of a half share of the expected jobs per actor (and never
-        # under a tenth of the time floor once timed), each actor holding two
+        # while streaming: chunks of a quarter of each actor's share of the expected jobs
+        # (an eighth of them on two actors; never under a tenth of the time floor once
+        # timed), each actor holding two
         streamed = max(math.ceil((expected or 1) / (self.chunks_per_worker * 2 * max(
             1, len(self._actors)))), 1 if self._job_s is None else
             math.ceil(_MIN_CHUNK_S / 10 / self._job_s))

@@ -98,9 +98,9 @@ def test_a_generation_is_cut_in_batches_of_one_chunk_per_actor(
 
 def test_a_generation_given_as_it_is_bred_goes_out_as_it_comes(counted: _Counted) -> None:
     """Streaming: jobs handed over by a generator with their expected number reach the
-    actors in chunks of a half share of the expected jobs per actor while the generator
-    still runs (evolve() breeds that way), and the fitnesses are the serial ones; a list
-    goes out by factoring, as before."""
+    actors while the generator still runs (evolve() breeds that way), in chunks of a
+    quarter of each actor's share of the expected jobs, and the fitnesses are the serial
+    ones; a list goes out by factoring, as before."""
     evaluator, jobs, serial, sizes = counted
     sent_before: list[int] = []  # chunks sent when each job was handed over
 
