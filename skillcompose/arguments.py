@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from .errors import SkillcomposeError, clip
+from .files import not_a_file
 
 __all__ = [
     "MAX_SEED",
@@ -115,7 +116,9 @@ def module_or_file(text: str) -> str:
         return text
     if text.endswith((".py", ".yaml", ".yml")) or "/" in text or os.sep in text:
         if not Path(text).is_file():
-            raise argparse.ArgumentTypeError(f"no file {_shown(text)}")
+            kind = not_a_file(text)
+            raise argparse.ArgumentTypeError(
+                f"{_shown(text)} is {kind}, not a file" if kind else f"no file {_shown(text)}")
         return text
     raise argparse.ArgumentTypeError(
         f"{_shown(text)} is neither a module name (like examples.pour_water) nor a .py file"

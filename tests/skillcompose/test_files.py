@@ -59,3 +59,15 @@ def test_an_fsa_file_that_is_a_pipe_is_one_line(
     assert err.strip().splitlines() == [
         f"skillcompose {command[0]}: error: {pipe}: cannot read the file: it is a pipe, not a "
         "regular file; give the path of an FSA file"]
+
+
+def test_an_argument_naming_a_pipe_says_what_it_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    os.mkfifo(tmp_path / "s.yaml")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(tmp_path)
+        with pytest.raises(SystemExit) as stop:
+            main(["skills", "--skills", "s.yaml"])
+    assert stop.value.code == 2
+    assert "argument --skills: 's.yaml' is a pipe, not a file" in capsys.readouterr().err
