@@ -67,7 +67,12 @@ def test_an_argument_naming_a_pipe_says_what_it_is(
     os.mkfifo(tmp_path / "s.yaml")
     with pytest.MonkeyPatch.context() as mp:
         mp.chdir(tmp_path)
-        with pytest.raises(SystemExit) as stop:
-            main(["skills", "--skills", "s.yaml"])
-    assert stop.value.code == 2
-    assert "argument --skills: 's.yaml' is a pipe, not a file" in capsys.readouterr().err
+        with pytest.raises(SystemExit) as stop:  # a path: checked as it is parsed
+            main(["skills", "--skills", "./s.yaml"])
+        assert stop.value.code == 2
+        assert "argument --skills: './s.yaml' is a pipe, not a file" in \
+            capsys.readouterr().err
+        assert main(["skills", "--skills", "s.yaml"]) == 2  # read as an FSA file
+        assert capsys.readouterr().err.splitlines() == [
+            "skillcompose skills: error: s.yaml: cannot read the file: it is a pipe, not a "
+            "regular file; give the path of an FSA file"]
