@@ -21,8 +21,8 @@ gets the umask's):
                      before the run writes its own.
 
 A new run (``--out``) refuses a directory that holds a run's files without a checkpoint
-(``run.json``, ``history.jsonl``, ``best.yaml``, ``best_evolved.yaml``): another run's, or
-a person's, which it would overwrite.
+(``run.json``, ``history.jsonl``, ``best.yaml``, ``best_evolved.yaml`` and the drawings):
+another run's, or a person's, which it would overwrite.
 
 A checkpoint is one header line, a JSON object
 ``{"format": "skillcompose evolve checkpoint", "version": 2, "sha256": HEX, "bytes": N}``,
@@ -199,7 +199,8 @@ class RunDir:
                         f"--resume {self.path}, or choose another --out directory"
                     )
             held = [p.name for p in (self.run_json, self.history, self.best_yaml,
-                                     self.best_evolved_yaml) if os.path.lexists(p)]
+                                     self.best_evolved_yaml, self.best_dot, self.best_png,
+                                     self.fitness_png) if os.path.lexists(p)]
             if held and not self._killed_as_it_started(held):
                 raise CheckpointError(
                     f"{self.path} holds {', '.join(held)} but no checkpoint: another run's "

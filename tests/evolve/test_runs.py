@@ -154,6 +154,10 @@ def test_a_new_run_refuses_a_folder_holding_run_files_without_a_checkpoint(
         (tmp_path / "torn" / "history.jsonl").write_text("")
         evolve(_task(), CFG, seed=4, out_dir=tmp_path / "torn")
     assert (tmp_path / "torn" / "run.json").read_text() == "{}"
+    (tmp_path / "pictures").mkdir()
+    (tmp_path / "pictures" / "fitness.png").write_bytes(b"a person's picture")
+    with pytest.raises(CheckpointError, match=r"holds fitness\.png but no checkpoint"):
+        evolve(_task(), CFG, seed=4, out_dir=tmp_path / "pictures")
     # what a run killed as it started leaves (run.json, an empty history): nothing anyone
     # would lose, so the same command may start it again there
     done = evolve(_task(), CFG, seed=4, out_dir=tmp_path / "done")
