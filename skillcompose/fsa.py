@@ -136,6 +136,11 @@ class FSA:
     def structure_problems(self) -> list[Problem]:
         """Problems visible without knowing the skills."""
         out: list[Problem] = []
+        if isinstance(self.name, str) and control_characters(self.name):
+            out.append(self._problem(
+                _control_message(f"name {self.name!r}", self.name),
+                fix="write the name without it", at=("name",),
+            ))
         problem = step_limit_problem(self.step_limit)
         if problem is not None:
             out.append(self._at(problem, "step_limit"))

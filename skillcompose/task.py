@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .blackboard import Blackboard
-from .errors import SkillcomposeError
+from .errors import SkillcomposeError, clip, control_characters
 from .executor import CompiledFSA, FSARun, RunResult, compile_fsa, trial_rngs
 from .fsa import DEFAULT_TERMINALS, ERROR, FSA
 from .registry import Registry, describe_exception, import_target
@@ -145,6 +145,15 @@ class Task:
     terminals: tuple[str, ...] = DEFAULT_TERMINALS
     deterministic: bool = False
     ref: TaskRef | None = None
+
+    def __post_init__(self) -> None:
+        # the name goes into every evolved FSA and line that names the task: shown as it is
+        if not isinstance(self.name, str) or not self.name.strip() or \
+                control_characters(self.name):
+            raise TaskError(
+                f"task name {clip(repr(self.name), 60)} must be non-empty text without "
+                "control characters (line breaks, escapes); give Task(name=...) another name"
+            )
 
     @property
     def worst(self) -> float:

@@ -132,3 +132,27 @@ def test_the_first_error_of_runs_prints_its_message_escaped(
     text = captured.out + captured.err
     assert "RuntimeError: line1\\nline2\\x1b[2J\\x07" in text
     assert "\x1b" not in text and "\x07" not in text
+
+
+def test_task_and_fsa_names_with_control_characters_are_refused(tmp_path: Path) -> None:
+    """The task's name goes into every evolved FSA's name and every line naming the task:
+    a task named with a line break or an escape is refused where it is made, and an FSA
+    file whose name holds one is refused at its line."""
+    from skillcompose import Blackboard, Registry, load_fsa
+    from skillcompose.task import Task, TaskError
+
+    def make(name: str) -> Task:
+        return Task(name=name, registry=Registry(), setup=lambda rng: Blackboard(),
+                    fitness=lambda outcome, bb, steps: 0.0)
+
+    assert make("fetch é").name == "fetch é"
+    for name in ("a\nb", "a\x1b[2Jb", "", "  "):
+        with pytest.raises(TaskError, match="must be non-empty text without control"):
+            make(name)
+    bad = tmp_path / "named.yaml"
+    bad.write_text('format: 1\nname: "mine\\e[2J"\nstart: A\nstates: {A: {skill: X, '
+                   "transitions: {ok: success}}}\n")
+    with pytest.raises(FSAValidationError) as err:
+        load_fsa(bad)
+    assert "name 'mine\\x1b[2J' holds a control character (U+001B)" in str(err.value)
+    assert ":2:" in printable(err.value)
