@@ -29,7 +29,6 @@ from nicegui import run as background
 from starlette.requests import Request
 
 from skillcompose.errors import SkillcomposeError
-from skillcompose.files import read_limited
 from skillcompose.origins import inside, is_file_target, module_origins
 from skillcompose.registry import Registry
 from skillcompose.task import load_task, parse_settings
@@ -42,7 +41,7 @@ from .data import (
     pid_alive,
     read_fsa,
     read_history,
-    read_run,
+    read_run_info,
 )
 from .episode import Episode, run_episode
 from .live import LIVE_SUFFIX, read_live
@@ -190,18 +189,15 @@ def task_refusal(config: ViewerConfig, target: str, request: str | None) -> str 
 
 def _task_of_run(path: Path) -> tuple[str | None, dict[str, Any]]:
     """The task module and settings of the run directory holding ``path``, if any."""
-    summary = read_run(path.parent, path.parent) if (path.parent / "run.json").is_file() \
-        else None
-    if summary is None or not summary.task_module:
-        return None, {}
-    import json
-
     try:
-        info = json.loads(read_limited(path.parent / "run.json", 16 << 20))
-        settings = info.get("task_settings") or {}
-    except (OSError, ValueError):
-        settings = {}
-    return summary.task_module, dict(settings) if isinstance(settings, dict) else {}
+        info, problem = read_run_info(path.parent)
+    except FileNotFoundError:
+        return None, {}
+    module = str(info.get("task_module", ""))
+    if problem or not module:
+        return None, {}
+    settings = info.get("task_settings") or {}
+    return module, dict(settings) if isinstance(settings, dict) else {}
 
 
 # ---------------------------------------------------------------------------------------

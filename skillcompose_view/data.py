@@ -25,7 +25,7 @@ from skillcompose.registry import Registry
 
 __all__ = [
     "FSAView", "RunSummary", "StateRow", "describe_value", "find_runs", "mermaid", "pid_alive",
-    "read_fsa", "read_history", "read_run",
+    "read_fsa", "read_history", "read_run", "read_run_info",
 ]
 
 MAX_RUNS = 200  # run directories listed under one folder
@@ -150,35 +150,38 @@ def _number(value: Any) -> float | None:
         else None
 
 
+def read_run_info(run_dir: Path) -> tuple[dict[str, Any], str]:
+    """The object in ``run_dir``'s ``run.json``, and why it cannot be used ("" when it
+    can; then ``{}``). Raises :class:`FileNotFoundError` when there is none."""
+    try:
+        data = read_limited(run_dir / "run.json", MAX_RUN_JSON_BYTES)
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        return {}, f"run.json cannot be read: {exc.strerror}"
+    if len(data) > MAX_RUN_JSON_BYTES:
+        return {}, f"run.json cannot be read: larger than {MAX_RUN_JSON_BYTES >> 20} MiB"
+    try:
+        loaded = json.loads(data.decode("utf-8"))  # (not UTF-8: a ValueError too)
+    except (ValueError, RecursionError):
+        loaded = None
+    if not isinstance(loaded, dict):
+        return {}, "run.json is not a JSON object (being written, or damaged)"
+    return loaded, ""
+
+
 def read_run(run_dir: Path, root: Path) -> RunSummary | None:
     """The summary of one run directory, or None when it vanished."""
     try:
         name = str(run_dir.relative_to(root)) if run_dir != root else run_dir.name
     except ValueError:
         name = str(run_dir)
-    problem = ""
-    info: dict[str, Any] = {}
     try:
-        data = read_limited(run_dir / "run.json", MAX_RUN_JSON_BYTES)
-        if len(data) > MAX_RUN_JSON_BYTES:
-            raise OSError(0, f"larger than {MAX_RUN_JSON_BYTES >> 20} MiB")
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        text = "not UTF-8"  # reported below as not JSON
+        info, problem = read_run_info(run_dir)
     except FileNotFoundError:
         if not run_dir.exists():
             return None
-        problem = "run.json is missing"
-    except OSError as exc:
-        problem = f"run.json cannot be read: {exc.strerror}"
-    else:
-        try:
-            loaded = json.loads(text)
-            if not isinstance(loaded, dict):
-                raise ValueError
-            info = loaded
-        except (ValueError, RecursionError):
-            problem = "run.json is not a JSON object (being written, or damaged)"
+        info, problem = {}, "run.json is missing"
     history = read_history(run_dir / "history.jsonl")
     result = info.get("result") if isinstance(info.get("result"), dict) else None
     if problem:
