@@ -11,13 +11,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from skillcompose.arguments import MAX_TRIALS  # the command line's bound, for files too
+
 from .errors import EvolutionConfigError
 
-__all__ = ["MOST_TRIALS", "PRESETS", "TOPOLOGIES", "EvolutionConfig"]
+__all__ = ["PRESETS", "TOPOLOGIES", "EvolutionConfig"]
 
-MOST_TRIALS = 1_000_000
-"""The most episodes one evaluation, confirmation or check may run (as the command line
-allows): far beyond any real run, and a bound on what a checkpoint from elsewhere asks."""
 _MOST = 10**9  # generations, intervals, jobs: bounded, far beyond any real run
 
 TOPOLOGIES = ("ring", "complete")
@@ -176,8 +175,8 @@ class EvolutionConfig:
         whole("tournament", 1, 10**6)
         whole("generations", 0)
         whole("elitism", 0, 10**6)
-        whole("cache_refresh", 0, MOST_TRIALS)
-        whole("confirm_trials", 0, MOST_TRIALS)
+        whole("cache_refresh", 0, MAX_TRIALS)
+        whole("confirm_trials", 0, MAX_TRIALS)
         whole("confirm_candidates", 0, 10_000)
         whole("checkpoint_every", 1)
         whole("chunks_per_worker", 1)
@@ -194,7 +193,7 @@ class EvolutionConfig:
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
             prob(name)
         if self.trials is not None:
-            whole("trials", 1, MOST_TRIALS)
+            whole("trials", 1, MAX_TRIALS)
         for name in ("param_sigma", "terminal_weight"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or \

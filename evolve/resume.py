@@ -23,10 +23,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from skillcompose.arguments import MAX_TRIALS
 from skillcompose.origins import inside, module_origins
 from skillcompose.task import Task, load_task
 
-from .config import MOST_TRIALS, EvolutionConfig
+from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
 
 __all__ = [
@@ -112,8 +113,8 @@ def check_record(record: Any, where: str) -> dict[str, Any]:
         raise _fail(where, "simplify", record["simplify"], "true or false")
     for key, low in (("simplify_trials", 1), ("check_trials", 0)):
         v = record[key]
-        if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= MOST_TRIALS:
-            raise _fail(where, key, v, f"a whole number from {low} to {MOST_TRIALS:,}")
+        if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= MAX_TRIALS:
+            raise _fail(where, key, v, f"a whole number from {low} to {MAX_TRIALS:,}")
     if not isinstance(record["config"], dict):
         raise _fail(where, "config", record["config"], "an object of evolution settings")
     try:
