@@ -26,11 +26,13 @@ import math
 import multiprocessing
 import os
 import pickle
+import secrets
 import signal
 import sys
 import threading
 import time
 import traceback
+import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
@@ -41,9 +43,11 @@ from typing import Any, NamedTuple, Protocol, cast
 
 import numpy as np
 
+from skillcompose.errors import one_line
 from skillcompose.executor import CompiledFSA, error_summary
 from skillcompose.task import Task, TaskRef
 
+from .channel import HANDSHAKE_S, JobServer, connect, messages
 from .config import EVALUATION_BACKENDS
 from .errors import EvolutionError
 from .genome import Genome, GenomeCompiler, SkillSet
@@ -993,6 +997,10 @@ def ray_runtime_env(task: Task) -> tuple[dict[str, Any], TaskRef]:
     return env, ref
 
 
+class _Unreachable(EvolutionError):
+    """A Ray actor lives, but the driver cannot connect to it for its jobs."""
+
+
 class _Actor:
     """A Ray actor of a :class:`RayEvaluator`, the node it runs on, and its calls in flight
     (oldest first: the first one is running, the others wait behind it)."""
@@ -1001,6 +1009,8 @@ class _Actor:
         self.handle = handle
         self.node = node
         self.calls: list[tuple[Any, int, list[Job], bool]] = []  # ref, position, jobs, alone
+        self.conn: Connection | None = None  # the direct connection its jobs take, if any
+        self.watch: Any = None  # the ref of its serving loop, which ends when it dies
         self.since = 0.0  # when its first call in flight started (roughly: sent or freed)
         self.retiring = False  # served its jobs or memory: replaced once its calls are done
 
@@ -1036,12 +1046,19 @@ class RayEvaluator:
     overruns what its jobs' limits allow is killed and that chunk run again job by job,
     each job given the limit (a job that overruns it alone scores worst as a time-out).
     Actors are replaced after ``max_jobs`` jobs or ``max_growth_mb`` of memory growth.
+
+    With ``direct`` (the default) the chunks and their results go over a connection of
+    :mod:`evolve.channel` from the driver to each actor, not through Ray's calls, which
+    cost a tenth of a small generation; when the driver cannot connect to the first
+    actors (a firewall that opens Ray's ports only, say), it warns once and uses Ray's
+    calls (``direct=False``).
     """
 
     def __init__(
         self, task: Task, skills: SkillSet, workers: int | None = None,
         chunks_per_worker: int = 2, limits: EvalLimits | None = None,
         runtime_env: dict[str, Any] | None = None, start_timeout: float = 120.0,
+        direct: bool = True,
     ) -> None:
         try:
             import ray
@@ -1070,16 +1087,31 @@ class RayEvaluator:
         self.nodes: list[str] = []
         self.groups = 1
         self._job_s: float | None = None  # seconds per job, as the last generation ran
+        self.direct = direct
+        self._key = secrets.token_bytes(32)  # proves the driver to its actors, and back
+        self._home = str(ray.get_runtime_context().get_node_id())  # the driver's node
         try:
-            for _ in range(self.workers):
-                self._start_actor()
-            self._await_actors(wait_all=True)
+            try:
+                self._start_all()
+            except _Unreachable as exc:
+                warnings.warn(f"{exc}; the jobs go through Ray's calls instead, slower",
+                              RuntimeWarning, stacklevel=2)
+                self.close(keep_ray=True)
+                self.direct = False
+                self._start_all()
         except BaseException:
             self.close()
             raise
 
+    def _start_all(self) -> None:
+        for _ in range(self.workers):
+            self._start_actor()
+        self._await_actors(wait_all=True)
+
     def _start_actor(self) -> None:
-        handle: Any = self._actor_cls.remote(self._ref, self._terminals, self.limits)
+        handle: Any = self._actor_cls.remote(
+            self._ref, self._terminals, self.limits, self._key if self.direct else None,
+            self._home)
         self._starting[handle.ready.remote()] = handle
 
     def _await_actors(self, wait_all: bool = False, timeout: float = 0.0) -> None:
@@ -1096,7 +1128,7 @@ class RayEvaluator:
                 break
             handle = self._starting.pop(done[0])
             try:
-                node = ray.get(done[0])
+                node, address = ray.get(done[0])
             except ray.exceptions.RuntimeEnvSetupError as exc:
                 self._discard_starting()
                 raise EvolutionError(
@@ -1109,7 +1141,11 @@ class RayEvaluator:
                     f"a Ray actor could not build task {self.task.name}: "
                     f"{str(exc).strip()[-800:]}"
                 ) from exc
-            self._actors.append(_Actor(handle, node))
+            actor = _Actor(handle, node)
+            if address is not None and not self._connect(actor, tuple(address)):
+                self._start_actor()  # it died on the way: another
+                continue
+            self._actors.append(actor)
             if not wait_all:
                 deadline = time.monotonic()  # take what has started, without waiting more
         if not self._actors and waits:
@@ -1119,19 +1155,45 @@ class RayEvaluator:
                 "CPU (see `ray status`), or use fewer --workers"
             )
 
+    def _connect(self, actor: _Actor, address: tuple[str, int]) -> bool:
+        """Start ``actor``'s serving loop and connect to it: False if it died meanwhile;
+        raises :class:`_Unreachable` when it lives but cannot be reached."""
+        ray = self._ray
+        actor.watch = actor.handle.serve.remote()
+        try:
+            actor.conn = connect(address, self._key)
+            return True
+        except Exception as exc:
+            done, _ = ray.wait([actor.watch], timeout=1.0)
+            with contextlib.suppress(Exception):
+                ray.kill(actor.handle)
+            if done:
+                return False
+            self._discard_starting()
+            raise _Unreachable(
+                f"the driver could not connect to a Ray actor at {address[0]}:{address[1]} for "
+                f"its jobs ({one_line(str(exc)) or type(exc).__name__}): open TCP from the "
+                "driver to the nodes' ephemeral ports, or use RayEvaluator(direct=False)"
+            ) from exc
+
     def _discard_starting(self) -> None:
         for handle in self._starting.values():
             with contextlib.suppress(Exception):
                 self._ray.kill(handle)
         self._starting = {}
 
-    def _drop(self, actor: _Actor, kill: bool) -> None:
-        """Take ``actor`` out of the pool (killing it) and start a replacement."""
-        if kill:
-            with contextlib.suppress(Exception):
-                self._ray.kill(actor.handle)
+    def _drop(self, actor: _Actor) -> None:
+        """Take ``actor`` out of the pool (killing it, if it lives) and start a replacement."""
+        self._kill(actor)
         self._actors.remove(actor)
         self._start_actor()
+
+    def _kill(self, actor: _Actor) -> None:
+        if actor.conn is not None:
+            actor.conn.close()
+            actor.conn = None
+        with contextlib.suppress(Exception):  # an actor that died already
+            self._ray.kill(actor.handle)
 
     def evaluate(self, jobs: Iterable[Job], expected: int | None = None) -> list[float]:
         ray = self._ray
@@ -1139,7 +1201,7 @@ class RayEvaluator:
         self.faults = faults
         self.nodes = []
         for actor in [a for a in self._actors if a.calls]:  # a generation ended by an
-            self._drop(actor, kill=True)  # exception (its jobs' breeding raised, Ctrl-C)
+            self._drop(actor)  # exception (its jobs' breeding raised, Ctrl-C)
         # a generation handed over as it is bred (an iterator, with its expected size) goes
         # out as it comes, so the actors evaluate while the driver breeds the rest; islands
         # need the whole generation first, to cut it into runs at home on their nodes
@@ -1248,14 +1310,30 @@ class RayEvaluator:
                 p, chunk, alone = work
                 if not actor.calls:
                     actor.since = time.monotonic()
-                actor.calls.append((actor.handle.run.remote(_pack(chunk), p), p, chunk, alone))
+                if actor.conn is None:
+                    actor.calls.append(
+                        (actor.handle.run.remote(_pack(chunk), p), p, chunk, alone))
+                    continue
+                actor.calls.append((None, p, chunk, alone))
+                try:
+                    actor.conn.send((_pack(chunk), p))
+                except Exception:  # it died: what it had goes again
+                    died(actor, killed=False)
+                    return
 
         def died(actor: _Actor, killed: bool) -> None:
             """The actor is gone (or ``killed`` by us for time): keep what it finished,
             run again what it had not."""
             unfinished = []
+            if actor.conn is not None:  # what it sent back before it went
+                with contextlib.suppress(Exception):
+                    while actor.calls and actor.conn.poll(0):
+                        result = actor.conn.recv()
+                        record(actor, actor.calls.pop(0)[1], result)
             for ref, p, chunk, alone in actor.calls:
                 try:
+                    if ref is None:
+                        raise EOFError
                     record(actor, p, ray.get(ref, timeout=0))
                 except Exception:
                     unfinished.append((p, chunk, alone))
@@ -1278,7 +1356,7 @@ class RayEvaluator:
                     singles.insert(0, p)
                 else:
                     singles[:0] = range(p, p + len(chunk))
-            self._drop(actor, kill=killed)
+            self._drop(actor)
 
         def record(actor: _Actor, p: int, result: Any) -> None:
             fitness, chunk_codes, error, worn, seconds = result
@@ -1294,10 +1372,47 @@ class RayEvaluator:
                 faults.recycled += 1
 
         def feed_all() -> None:
-            for actor in self._actors:  # a first chunk to every actor before a second to any
-                feed(actor, 1)
-            for actor in self._actors:
-                feed(actor)
+            for most in (1, 2):  # a first chunk to every actor before a second to any
+                for actor in list(self._actors):
+                    if actor in self._actors:
+                        feed(actor, most)
+
+        def finished(actor: _Actor, result: Any, k: int = 0) -> None:
+            _, p, _, _ = actor.calls.pop(k)
+            actor.since = time.monotonic()
+            record(actor, p, result)
+            if actor.retiring and not actor.calls:
+                self._drop(actor)
+
+        watched = time.monotonic()  # when dead actors were last looked for
+
+        def take_direct(timeout: float) -> None:
+            """Take the results that come back over the actors' connections within
+            ``timeout``; when none came, look for actors Ray knows died without closing
+            their connection (a node cut off)."""
+            nonlocal watched
+            conns = {a.conn: a for a in self._actors if a.calls and a.conn is not None}
+            ready = wait(list(conns), timeout)
+            for conn in ready:
+                actor = conns[cast(Connection, conn)]
+                if actor not in self._actors:
+                    continue
+                try:
+                    result = actor.conn.recv() if actor.conn is not None else None
+                except Exception:  # it died (its process, or its node)
+                    died(actor, killed=False)
+                    continue
+                finished(actor, result)
+            if ready or time.monotonic() - watched < tick:
+                return
+            watched = time.monotonic()
+            watches = {a.watch: a for a in self._actors if a.calls}
+            if watches:
+                gone, _ = ray.wait(list(watches), num_returns=len(watches), timeout=0)
+                for ref in gone:
+                    if watches[ref] in self._actors:
+                        died(watches[ref], killed=False)
+
 
         feed_all()
         while True:
@@ -1305,8 +1420,7 @@ class RayEvaluator:
                 pull()
             self._await_actors()
             feed_all()
-            calls = {c[0]: a for a in self._actors for c in a.calls}
-            if not calls:
+            if not any(a.calls for a in self._actors):
                 if stream is None and all(a >= b for a, b in spans) and not singles \
                         and not again:
                     break
@@ -1314,23 +1428,23 @@ class RayEvaluator:
                     self._await_actors(timeout=self.start_timeout)
                 continue
             # while jobs come, only what is back now: then on to take (breed) more
-            done, _ = ray.wait(list(calls), num_returns=1,
-                               timeout=0.0 if stream is not None else tick)
-            for ref in done:
-                actor = calls[ref]
-                if actor not in self._actors:  # already handled as dead in this round
-                    continue
-                try:
-                    result = ray.get(ref)
-                except Exception:  # the actor died (RayActorError), or its node did
-                    died(actor, killed=False)
-                    continue
-                k = next(i for i, c in enumerate(actor.calls) if c[0] == ref)
-                _, p, _, _ = actor.calls.pop(k)
-                actor.since = time.monotonic()
-                record(actor, p, result)
-                if actor.retiring and not actor.calls:
-                    self._drop(actor, kill=True)
+            timeout = 0.0 if stream is not None else tick
+            if self.direct:
+                take_direct(timeout)
+            else:
+                calls = {c[0]: a for a in self._actors for c in a.calls}
+                done, _ = ray.wait(list(calls), num_returns=1, timeout=timeout)
+                for ref in done:
+                    actor = calls[ref]
+                    if actor not in self._actors:  # already handled as dead in this round
+                        continue
+                    try:
+                        result = ray.get(ref)
+                    except Exception:  # the actor died (RayActorError), or its node did
+                        died(actor, killed=False)
+                        continue
+                    finished(actor, result,
+                             next(i for i, c in enumerate(actor.calls) if c[0] == ref))
             if per_job is not None:
                 now = time.monotonic()
                 for actor in list(self._actors):
@@ -1347,29 +1461,50 @@ class RayEvaluator:
         self.nodes = nodes
         return out
 
-    def close(self) -> None:
+    def close(self, keep_ray: bool = False) -> None:
         for a in self._actors:
-            with contextlib.suppress(Exception):  # an actor that died already
-                self._ray.kill(a.handle)
+            self._kill(a)
         self._actors = []
         self._discard_starting()
-        if self._owns_ray:  # its runtime environment was this task's: the next starts anew
+        # its runtime environment was this task's: the next starts anew
+        if self._owns_ray and not keep_ray:
             self._ray.shutdown()
             self._owns_ray = False
 
 
 class _RayWorker:
-    def __init__(self, ref: TaskRef, terminals: tuple[str, ...], limits: EvalLimits) -> None:
+    def __init__(
+        self, ref: TaskRef, terminals: tuple[str, ...], limits: EvalLimits, key: bytes | None,
+        home: str,
+    ) -> None:
         self.task = ref.build()
         self.compiler = GenomeCompiler(self.task, SkillSet.from_task(self.task, terminals))
         self.guard = Guard(limits.time_limit).install()
         self.recycler = _Recycler(limits)
+        self._key = key
+        self._home = home  # the node of the evaluator
+        self._jobs: JobServer | None = None
 
-    def ready(self) -> str:
-        """The id of the node this actor runs on."""
+    def ready(self) -> tuple[str, tuple[str, int] | None]:
+        """The id of the node this actor runs on, and, when the evaluator gave a key, the
+        address where it takes its jobs (127.0.0.1 on the evaluator's own node)."""
         import ray
 
-        return str(ray.get_runtime_context().get_node_id())
+        node = str(ray.get_runtime_context().get_node_id())
+        if self._key is None:
+            return node, None
+        host = "127.0.0.1" if node == self._home else ray.util.get_node_ip_address()
+        self._jobs = JobServer(host, self._key)
+        return node, self._jobs.address
+
+    def serve(self) -> None:
+        """Run the chunks that come over the evaluator's connection (each ``(packed, at)``
+        as :meth:`run` takes them), sending back each one's results, until it closes.
+        Runs on the actor's main thread, as Ray's calls do, so the time limit works."""
+        assert self._jobs is not None, "ready() first"
+        with self._jobs.accept(3 * HANDSHAKE_S) as conn:
+            for packed, at in messages(conn):
+                conn.send(self.run(packed, at))
 
     def run(
         self, packed: bytes, at: int

@@ -132,3 +132,33 @@ def test_a_generation_given_as_it_is_bred_goes_out_as_it_comes(counted: _Counted
     sizes.clear()
     assert evaluator.evaluate(bred(), expected=64) == serial
     assert max(sent_before) == 0
+
+
+def test_jobs_take_a_direct_connection_and_fall_back_to_rays_calls(
+    counted: _Counted, monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """By default each actor's chunks go over a connection of its own; when the driver
+    cannot connect to a live actor, it says so once and the jobs go through Ray's calls,
+    with the same fitnesses."""
+    import evolve.evaluation as ev_mod
+    from evolve import RayEvaluator, SkillSet
+
+    evaluator, jobs, serial, _ = counted
+    assert evaluator.direct
+    assert [a.conn is not None for a in evaluator._actors] == [True, True]
+    assert evaluator.evaluate(jobs) == serial
+    evaluator.close(keep_ray=True)  # its CPUs, for the next
+
+    def refused(address: tuple[str, int], key: bytes) -> Any:
+        raise ConnectionRefusedError(111, "Connection refused")
+
+    monkeypatch.setattr(ev_mod, "connect", refused)
+    with pytest.warns(RuntimeWarning, match=r"could not connect to a Ray actor at .*"
+                      r"Connection refused.*through Ray's calls instead"):
+        fallback = RayEvaluator(evaluator.task, SkillSet.from_task(evaluator.task), workers=2)
+    try:
+        assert not fallback.direct and [a.conn for a in fallback._actors] == [None, None]
+        assert fallback.evaluate(jobs) == serial
+        assert fallback.evaluate(iter(jobs), expected=len(jobs)) == serial
+    finally:
+        fallback.close()

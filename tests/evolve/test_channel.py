@@ -1,0 +1,91 @@
+"""The direct connection between the Ray evaluator and its actors (no Ray needed)."""
+
+from __future__ import annotations
+
+import os
+import socket
+import threading
+from multiprocessing import AuthenticationError
+from multiprocessing.connection import Connection
+from typing import Any
+
+import pytest
+
+from evolve import channel
+from evolve.channel import JobServer, connect, messages
+
+KEY = b"k" * 32
+
+
+def _serve(server: JobServer, seen: list[Any], timeout: float = 10.0) -> threading.Thread:
+    """An actor's loop in a thread: every message comes back doubled."""
+
+    def loop() -> None:
+        with server.accept(timeout) as conn:
+            for message in messages(conn):
+                seen.append(message)
+                conn.send(message * 2)
+
+    thread = threading.Thread(target=loop)
+    thread.start()
+    return thread
+
+
+def _nodelay(conn: Connection) -> int:
+    sock = socket.socket(fileno=os.dup(conn.fileno()))
+    with sock:
+        return sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY)
+
+
+def test_jobs_go_both_ways_in_order_and_sends_never_wait_on_the_actor() -> None:
+    server = JobServer("127.0.0.1", KEY)
+    assert server.address[0] == "127.0.0.1"
+    seen: list[Any] = []
+    thread = _serve(server, seen)
+    conn = connect(server.address, KEY)
+    big = b"x" * (8 << 20)  # more than a socket's buffers: read by the actor as it comes
+    for message in (1, big, 3):
+        conn.send(message)
+    assert [conn.recv() for _ in range(3)] == [2, big * 2, 6]
+    assert _nodelay(conn)  # else each chunk waits for the delayed acknowledgement
+    conn.close()
+    thread.join(5)
+    assert not thread.is_alive() and seen == [1, big, 3]
+
+
+def test_a_peer_without_the_key_is_refused_and_the_evaluator_still_gets_in() -> None:
+    server = JobServer("127.0.0.1", KEY)
+    seen: list[Any] = []
+    thread = _serve(server, seen)
+    with pytest.raises(AuthenticationError):
+        connect(server.address, b"not the key")
+    conn = connect(server.address, KEY)
+    conn.send("job")
+    assert conn.recv() == "jobjob"
+    conn.close()
+    thread.join(5)
+    assert seen == ["job"]  # nothing of the stranger's
+
+
+def test_a_peer_that_stalls_in_the_challenge_is_dropped(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(channel, "HANDSHAKE_S", 0.3)
+    server = JobServer("127.0.0.1", KEY)
+    seen: list[Any] = []
+    thread = _serve(server, seen)
+    with socket.create_connection(server.address) as stalled:
+        stalled.settimeout(5)
+        stalled.recv(1 << 16)  # the challenge; never answered
+        assert stalled.recv(1) == b""  # dropped after the handshake's bound
+    conn = connect(server.address, KEY)
+    conn.send(1)
+    assert conn.recv() == 2
+    conn.close()
+    thread.join(5)
+
+
+def test_an_actor_nobody_connects_to_stops_listening() -> None:
+    server = JobServer("127.0.0.1", KEY)
+    with pytest.raises(TimeoutError):
+        server.accept(0.2)
+    with pytest.raises(ConnectionRefusedError):
+        connect(server.address, KEY)
