@@ -31,7 +31,9 @@ from typing import Any
 __all__ = ["HANDSHAKE_S", "JobServer", "connect", "messages"]
 
 HANDSHAKE_S = 10.0
-"""The longest a connection's challenge may take, either way."""
+"""The longest an actor lets a peer take over the challenge before it drops it and takes
+the next; the evaluator waits three times as long for its own, so that one stranger in the
+way does not keep it out."""
 
 
 def _bound(conn: Connection | socket.socket, seconds: float) -> None:
@@ -47,20 +49,21 @@ def _bound(conn: Connection | socket.socket, seconds: float) -> None:
             sock.detach()  # the fd stays the connection's
 
 
-def _connection(sock: socket.socket) -> Connection:
-    """``sock`` (connected) as a blocking, unbuffered connection, its reads and writes bounded
-    by :data:`HANDSHAKE_S` until :func:`_bound` lifts that."""
+def _connection(sock: socket.socket, bound: float) -> Connection:
+    """``sock`` (connected) as a blocking connection without Nagle's delay, its reads and
+    writes bounded by ``bound`` seconds until :func:`_bound` lifts that."""
     sock.settimeout(None)
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-    _bound(sock, HANDSHAKE_S)
+    _bound(sock, bound)
     return Connection(sock.detach())
 
 
-def connect(address: tuple[str, int], key: bytes, timeout: float = HANDSHAKE_S) -> Connection:
+def connect(address: tuple[str, int], key: bytes) -> Connection:
     """The evaluator's end of a connection to the actor listening at ``address``, both
     sides proven to hold ``key``. Raises ``OSError`` (refused, unreachable, timed out),
     ``EOFError`` (the actor went away) or ``multiprocessing.AuthenticationError``."""
-    conn = _connection(socket.create_connection(address, timeout=timeout))
+    conn = _connection(socket.create_connection(address, timeout=HANDSHAKE_S),
+                       3 * HANDSHAKE_S)
     try:
         answer_challenge(conn, key)
         deliver_challenge(conn, key)
@@ -90,7 +93,7 @@ class JobServer:
             while True:
                 self._server.settimeout(max(0.001, deadline - time.monotonic()))
                 sock, _ = self._server.accept()
-                conn = _connection(sock)
+                conn = _connection(sock, HANDSHAKE_S)
                 try:
                     deliver_challenge(conn, self._key)
                     answer_challenge(conn, self._key)
