@@ -4,9 +4,12 @@ one line."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import pickle
+import shutil
 import signal
 from pathlib import Path
 from typing import Any
@@ -22,11 +25,14 @@ ARGS = ["examples.toy_task", "--set", "p_fail=0.3", "--population", "20", "--ini
 EVIL = "import pathlib\npathlib.Path({marker!r}).write_text('ran')\n"
 
 
-@pytest.fixture
-def run_dir(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Path:
-    """A run stopped after its checkpoint of generation 2 (generations 3, 4 to go)."""
-    d = tmp_path / "received"
-    assert skillcompose_main(["evolve", *ARGS, "--generations", "2", "--out", str(d)]) == 0
+@pytest.fixture(scope="module")
+def stopped_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run stopped after its checkpoint of generation 2 (generations 3, 4 to go), made
+    once for the module (each test takes a copy: :func:`run_dir`)."""
+    d = tmp_path_factory.mktemp("stopped") / "received"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        code = skillcompose_main(["evolve", *ARGS, "--generations", "2", "--out", str(d)])
+    assert code == 0
     rd = RunDir(d)
     state = rd.load_checkpoint()
     state["run"]["config"]["generations"] = 4  # as if it had been started for 4 and killed
@@ -34,7 +40,14 @@ def run_dir(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Path:
     info = rd.load_run_info()
     info["config"]["generations"] = 4
     rd.write_run_info(info)
-    capsys.readouterr()
+    return d
+
+
+@pytest.fixture
+def run_dir(stopped_run: Path, tmp_path: Path) -> Path:
+    """A copy of :func:`stopped_run` of this test's own."""
+    d = tmp_path / "received"
+    shutil.copytree(stopped_run, d)
     return d
 
 
