@@ -1089,7 +1089,10 @@ class RayEvaluator:
         self._job_s: float | None = None  # seconds per job, as the last generation ran
         self.direct = direct
         self._key = secrets.token_bytes(32)  # proves the driver to its actors, and back
-        self._home = str(ray.get_runtime_context().get_node_id())  # the driver's node
+        try:  # the driver's node, where actors listen on 127.0.0.1 only
+            self._home = str(ray.get_runtime_context().get_node_id())
+        except Exception:  # a driver on no node (Ray Client): every actor on its address
+            self._home = ""
         try:
             try:
                 self._start_all()
