@@ -107,7 +107,8 @@ class EvolutionResult:
     seed: int
     out_dir: Path | None = None
     files: list[Path] = field(default_factory=list)
-    unchanged: bool = False  # a resumed run that had finished: nothing was done or written
+    unchanged: bool = False  # a resumed run that had finished: nothing done (``files``: the
+    # exported FSAs it found deleted and wrote again)
     budget: int = 0  # the generation budget
     run_command: str = ""  # a command line that runs the exported FSA on its task
     faults: Faults = field(default_factory=Faults)  # over the whole run
@@ -898,7 +899,8 @@ def evolve(
       differ from the run's only in ``generations`` (to extend a run: the result is the run
       an uninterrupted run to that budget would have given), ``checkpoint_every``,
       ``chunks_per_worker``, ``worker_max_jobs`` and ``worker_max_growth_mb``. A finished
-      run is not touched (``result.unchanged``).
+      run is not touched (``result.unchanged``), but for its exported FSAs, written again
+      when they were deleted.
     - ``seed_fsa``: an FSA (or file) placed in the first population, the rest random; the
       states that survive evolution keep their names (and, from a file, their comments).
     - ``simplify_result``: simplify the best FSA at the end (default on) with
@@ -1151,7 +1153,8 @@ def _evolve(
         }})
         run.exported = True  # last: a kill before this redoes only the exports
         rundir.save_checkpoint({**run.state(fitness), "seed_fsa_text": seed_text,
-                                "best_yaml": dumps_fsa(best, task.registry), "fresh": fresh})
+                                "best_yaml": dumps_fsa(best, task.registry, header=run.header()),
+                                "fresh": fresh})
         files = [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
                  rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
     return EvolutionResult(
@@ -1175,17 +1178,27 @@ def _evolve(
 
 
 def _unchanged(run: _Run, checkpoint: Mapping[str, Any], rundir: RunDir) -> EvolutionResult:
-    """The result of a run that had finished: read from its checkpoint, nothing written."""
+    """The result of a run that had finished: read from its checkpoint. Nothing is written
+    but the exported FSAs found missing (deleted), written again as the run wrote them;
+    ``files`` names those."""
     assert run.best is not None
     text = checkpoint.get("best_yaml")
     evolved = run.named(run.best_fsa())
     best = loads_fsa(text, str(rundir.checkpoint)) if isinstance(text, str) else evolved
     fresh = checkpoint.get("fresh")
     g, f, _ = run.best
+    restored: list[Path] = []
+    for path, again in ((rundir.best_yaml, text if isinstance(text, str) else None),
+                        (rundir.best_evolved_yaml, None)):
+        if not os.path.lexists(path):
+            again = again or dumps_fsa(evolved, run.task.registry, header=run.header())
+            rundir.write_editable(path, again.encode("utf-8"))
+            restored.append(path)
     return EvolutionResult(
         best_fsa=best, best_fitness=f, solved=run.task.solved(f), generations=run.generation,
         evaluations=run.evaluations, wall_time=run.wall_before, history=run.history,
-        evolved_fsa=evolved, best_genome=g, seed=run.seed, out_dir=rundir.path, files=[],
+        evolved_fsa=evolved, best_genome=g, seed=run.seed, out_dir=rundir.path,
+        files=restored,
         unchanged=True, budget=run.cfg.generations,
         run_command=run_command(str(rundir.best_yaml), run.record_info),
         faults=run.faults(), fresh=fresh if isinstance(fresh, dict) else {},

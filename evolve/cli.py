@@ -39,7 +39,8 @@ examples:
 A resumed run is the run it would have been without the interruption. It keeps its task,
 seed and settings: giving others is refused; only --generations (to extend it), --backend,
 --workers, --worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet may
-change. A finished run is left as it is.
+change. A finished run is left as it is, but for its best.yaml and best_evolved.yaml,
+written again if they were deleted.
 """
 
 # options whose absence matters on --resume: None until given (a new run's defaults: seed 0,
@@ -359,9 +360,11 @@ def handle(args: argparse.Namespace) -> int:
     if result.unchanged:
         why = "solved" if result.solved else (
             f"not solved in its budget of {result.budget} generations")
+        restored = ", ".join(p.name for p in result.files)
         print(
             f"{args.resume}: the run finished in generation {result.generations} ({why}); "
-            "nothing was changed."
+            + (f"wrote again {restored}, which had been deleted; nothing else was changed."
+               if restored else "nothing was changed.")
             + ("" if result.solved else
                f" Extend it with: skillcompose evolve --resume {args.resume} "
                f"--generations {2 * max(result.budget, 1)}")

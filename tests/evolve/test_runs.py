@@ -74,6 +74,28 @@ def test_resume_of_a_finished_run_changes_nothing(
     assert _files(d) == before
 
 
+def test_resume_of_a_finished_run_writes_again_the_exports_that_were_deleted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = tmp_path / "run"
+    assert skillcompose_main(["evolve", *TOY, *SMALL, "--generations", "3", "--out", str(d)]) == 0
+    before = _files(d)
+    del before[".written.json"]  # what it wrote: a record, rewritten with the files
+    exported = {name: (d / name).read_bytes() for name in ("best.yaml", "best_evolved.yaml")}
+    for name in exported:
+        (d / name).unlink()
+    capsys.readouterr()
+    assert skillcompose_main(["evolve", "--resume", str(d), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "wrote again best.yaml, best_evolved.yaml, which had been deleted" in out
+    assert {name: (d / name).read_bytes() for name in exported} == exported  # as written
+    assert {k: v for k, v in _files(d).items() if k != ".written.json"} == before
+    (d / "best_evolved.yaml").unlink()
+    assert skillcompose_main(["evolve", "--resume", str(d), "--quiet"]) == 0
+    assert "wrote again best_evolved.yaml, which" in capsys.readouterr().out
+    assert {k: v for k, v in _files(d).items() if k != ".written.json"} == before
+
+
 # -- 2: extending a run ----------------------------------------------------------------------
 def test_extending_a_run_equals_an_uninterrupted_run(tmp_path: Path) -> None:
     task = _task()
