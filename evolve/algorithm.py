@@ -1110,6 +1110,7 @@ def _evolve(
                 children = run.breed(fitness, bred) if fitness is not None else None
                 t = time.perf_counter()
                 fitness, episodes = run.evaluate(children)
+                _check_not_all_lost(run, rundir)
                 rec = run.record(fitness, episodes, time.perf_counter() - t)
                 run.show_progress(rec)
                 if on_generation is not None:
@@ -1174,6 +1175,24 @@ def _evolve(
         run_command=run_command(str(rundir.best_yaml) if rundir else "FILE", record),
         faults=faults,
         fresh=fresh,
+    )
+
+
+def _check_not_all_lost(run: _Run, rundir: RunDir | None) -> None:
+    """Stop the run when every evaluation of the generation killed the worker running it:
+    the task does that (and would kill this process too, simplifying or checking the
+    result), so going on would only count deaths."""
+    faults = run.gen_faults
+    if faults.jobs == 0 or faults.lost < faults.jobs:
+        return
+    again = ""
+    if rundir is not None:
+        again = (f"; fix it, then go on with: skillcompose evolve --resume "
+                 f"{shlex.quote(str(rundir.path))}")
+    raise EvolutionError(
+        f"every evaluation of generation {run.generation} ({faults.jobs}) killed the worker "
+        f"process running it: os._exit in task {run.task.name} or a skill, a crash in C code, "
+        f"or the out-of-memory killer; the run stops without recording it{again}"
     )
 
 

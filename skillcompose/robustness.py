@@ -36,6 +36,7 @@ import os
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -178,9 +179,16 @@ def robustness_sweep(
                                                disable=not progress))
         run = map if workers == 1 or len(jobs) == 1 else \
             stack.enter_context(ProcessPoolExecutor(min(workers, len(jobs)))).map
-        for job, part in zip(jobs, run(_run_chunk, jobs), strict=True):
-            parts.append(part)
-            bar.update(job.stop - job.start)
+        try:
+            for job, part in zip(jobs, run(_run_chunk, jobs), strict=True):
+                parts.append(part)
+                bar.update(job.stop - job.start)
+        except BrokenProcessPool:
+            raise RobustnessError(
+                f"a worker process running task {first.name} died in the sweep of {setting} "
+                "(os._exit in the task or a skill, a crash in C code, or the out-of-memory "
+                "killer); nothing was measured"
+            ) from None
 
     rows = []
     per_value = len(jobs) // len(values)

@@ -8,7 +8,9 @@
 - ``crash``: ends its process at once (``os._exit``), as a segfault would (never run it
   in the test process);
 - ``sigint``: sends this process a real ``SIGINT`` (a person's Ctrl-C);
-- ``setup``: the task's world setup raises (every evaluation fails).
+- ``setup``: the task's world setup raises (every evaluation fails);
+- ``crash_setup``: the world setup ends its process at once in a worker (every evaluation
+  kills its worker), and raises in the process that loaded the task.
 
 ``p_fault`` is the probability (drawn from the run's generator, so the same in every run)
 that a call misbehaves; otherwise ``Fault`` returns ``success``. For tests of how evolution
@@ -30,7 +32,9 @@ from examples import toy_task
 from skillcompose import Blackboard, Registry, Skill, skill
 from skillcompose.task import Task
 
-FAULTS = ("raise", "exit", "interrupt", "hang", "stuck", "leak", "crash", "sigint", "setup")
+FAULTS = ("raise", "exit", "interrupt", "hang", "stuck", "leak", "crash", "sigint", "setup",
+          "crash_setup")
+MAIN_PID = os.getpid()
 
 
 def make_fault(kind: str, p_fault: float, leak_mb: float) -> Skill:
@@ -79,6 +83,11 @@ def make_task(
     if fault == "setup":
         def setup(rng: np.random.Generator) -> Blackboard:
             raise RuntimeError("the world could not be set up")
+    if fault == "crash_setup":
+        def setup(rng: np.random.Generator) -> Blackboard:
+            if os.getpid() != MAIN_PID:
+                os._exit(3)
+            raise RuntimeError("crash_setup ran in the process that loaded the task")
 
     return replace(base, registry=registry, setup=setup, name=f"faulty_{fault}",
                    settings={"fault": fault, "p_fault": p_fault, "p_fail": p_fail,

@@ -22,6 +22,7 @@ from skillcompose.cli import main as skillcompose_main
 from skillcompose.task import Task, load_task
 
 FAULTY = "tests.evolve.faulty_task"
+TOY_SOLUTION = Path(__file__).parent / "data" / "toy_solution.yaml"
 SMALL = EvolutionConfig(population=16, generations=2, initial_nodes=4)
 
 
@@ -327,6 +328,38 @@ def test_dead_workers_are_counted_as_lost_jobs() -> None:
     assert [r.faults["failed"] for r in serial.history] == \
         [r.faults["failed"] for r in result.history]
     assert [(r.best, r.mean) for r in serial.history] == [(r.best, r.mean) for r in result.history]
+
+
+def test_a_run_whose_every_evaluation_kills_its_worker_stops_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Going on would only count deaths, and the end of the run (simplification, the fresh
+    check) would run the task in the main process, which it would kill without a word."""
+    d = tmp_path / "run"
+    code = skillcompose_main([
+        "evolve", FAULTY, "--set", "fault=crash_setup", "--population", "6", "--generations",
+        "3", "--initial-nodes", "3", "--workers", "2", "--quiet", "--out", str(d),
+    ])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith(
+        "skillcompose evolve: error: every evaluation of generation 0 (6) killed the worker "
+        "process running it: os._exit in task faulty_crash_setup or a skill, a crash in C code")
+    assert f"go on with: skillcompose evolve --resume {d}" in err
+    assert not (d / "best.yaml").exists() and (d / "checkpoint.json").is_file()
+
+
+def test_a_robustness_sweep_whose_worker_dies_is_one_line(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = skillcompose_main([
+        "robustness", str(TOY_SOLUTION), "--task", FAULTY, "--set", "fault=crash_setup",
+        "--reps", "4", "--workers", "2", "--p-fail", "0:0.5:2", "--quiet",
+    ])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("skillcompose robustness: error: a worker process running task "
+                          "faulty_crash_setup died in the sweep of p_fail (os._exit")
 
 
 # -- item 16: SystemExit and KeyboardInterrupt inside a skill ---------------------------------
