@@ -75,9 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
         "skills, evolve): one JSON document on standard output, nothing else (what tasks "
         "and skills print goes to standard error). "
         "Exit status: 0 done, 1 failed (an output that cannot be written, an "
-        "unexpected error, every run of `run` ended in error), 2 usage error (an argument "
-        "not allowed, an invalid FSA file, a task or skills module that does not load or "
-        "whose make_task, register() or world setup fails), 130 interrupted.",
+        "unexpected error, every run of `run` or `robustness` ended in error), 2 usage "
+        "error (an argument not allowed, an invalid FSA file, a task or skills module that "
+        "does not load or whose make_task, register() or world setup fails), 130 interrupted.",
     )
     parser.add_argument("--version", action="version", version=f"skillcompose {__version__}")
     parser.add_argument("--traceback", action="store_true",

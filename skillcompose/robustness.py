@@ -33,6 +33,8 @@ import csv
 import itertools
 import math
 import os
+import shlex
+import sys
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -52,7 +54,7 @@ from .arguments import (
     setting,
     whole,
 )
-from .errors import SkillcomposeError, clip
+from .errors import SkillcomposeError, clip, one_line
 from .fsa import ERROR, FSA, MAX_STEP_LIMIT, TIMEOUT
 
 if TYPE_CHECKING:
@@ -466,4 +468,11 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     if args.output:
         plot_sweep(rows, args.output, title=f"{Path(args.file).name} on {args.task}")
         note(args, f"plot: {args.output}")
+    if all(r.outcomes.get(ERROR, 0) == r.reps for r in rows):  # as `run` does
+        sets = "".join(f" --set {shlex.quote(str(s))}" for s in args.settings or [])
+        print(f"skillcompose robustness: error: every run of {one_line(str(args.file))} "
+              "ended in error (a skill raised or exited); see the first with: skillcompose "
+              f"run {shlex.quote(str(args.file))} --task {shlex.quote(str(args.task))}{sets}",
+              file=sys.stderr)
+        return 1
     return 0

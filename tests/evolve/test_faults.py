@@ -362,6 +362,26 @@ def test_a_robustness_sweep_whose_worker_dies_is_one_line(
                           "faulty_crash_setup died in the sweep of p_fail (os._exit")
 
 
+def test_a_robustness_sweep_whose_every_run_ends_in_error_fails_as_run_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    fsa = tmp_path / "fault.yaml"
+    fsa.write_text("format: 1\nname: f\nstart: F\nterminals: [success, failure]\nstates:\n"
+                   "  F:\n    skill: Fault\n    transitions: {success: success, "
+                   "failure: failure}\n")
+    args = ["robustness", str(fsa), "--task", FAULTY, "--reps", "3", "--workers", "1",
+            "--p-fail", "0:0.5:2", "--quiet"]
+    assert skillcompose_main([*args, "--set", "fault=raise"]) == 1
+    out, err = capsys.readouterr()
+    assert "error_rate" in out  # the table still comes
+    assert err == (f"skillcompose robustness: error: every run of {fsa} ended in error (a "
+                   "skill raised or exited); see the first with: skillcompose run "
+                   f"{fsa} --task {FAULTY} --set fault=raise\n")
+    assert skillcompose_main([*args, "--reps", "20", "--set", "fault=raise", "--set",
+                              "p_fault=0.5"]) == 0
+    assert capsys.readouterr().err == ""  # some runs in error: the table says how many
+
+
 # -- item 16: SystemExit and KeyboardInterrupt inside a skill ---------------------------------
 def test_sys_exit_in_a_skill_is_a_fault_not_the_end(capsys: pytest.CaptureFixture[str]) -> None:
     code = skillcompose_main([

@@ -400,7 +400,9 @@ def test_a_sweep_counts_a_skill_that_exits_as_runs_in_error(tmp_path: Path) -> N
         """)
     code, out, err = cli("robustness", _fsa(tmp_path, "Quits"), "--task", task,
                          "--p-fail", "0:1:2", "--reps", "3")
-    assert code == 0 and err == "", err  # no raw RuntimeWarning for the inf fitness either
+    # one line, as `run` gives (and no raw RuntimeWarning for the inf fitness)
+    assert code == 1 and err.count("\n") == 1, err
+    assert err.startswith("skillcompose robustness: error: every run of ")
     rows = [line.split() for line in out.strip().splitlines()]
     assert rows[0][-1] == "error_rate" and [r[-1] for r in rows[1:]] == ["1", "1"]
 
