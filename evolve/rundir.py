@@ -274,7 +274,8 @@ class RunDir:
             digest = hashlib.sha256(read_limited(path, 16 << 20)).hexdigest()
         except OSError:
             return None
-        if digest in self._written_map().get(path.name, []):
+        recorded = self._written_map().get(path.name)
+        if digest in (recorded or []):
             return None
         stem = path.name.removesuffix(".yaml")
         for k in range(1, 10_000):
@@ -290,8 +291,11 @@ class RunDir:
             else:
                 os.unlink(path)
             self.kept.append((path, aside))
-            print(f"{path} was edited since this run wrote it: kept as {aside.name}, and "
-                  f"the run writes its own {path.name}", file=sys.stderr)
+            why = "was edited since this run wrote it" if recorded else (
+                f"may have been edited: the run's record of what it wrote there "
+                f"({self.written_json.name}) is missing or unreadable")
+            print(f"{path} {why}: kept as {aside.name}, and the run writes its own "
+                  f"{path.name}", file=sys.stderr)
             return aside
         raise CheckpointError(f"{path} was edited, and no free name is left beside it to "
                               "keep it under; move the .edited files away")
