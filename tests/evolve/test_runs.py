@@ -148,6 +148,8 @@ def test_a_best_yaml_edited_by_a_person_is_kept_when_the_run_writes_again(
     capsys.readouterr()
     assert skillcompose_main(["evolve", "--resume", str(d), "--quiet", "--generations", "6"]) == 0
     assert "was edited" not in capsys.readouterr().err
+    assert sorted(p.name for p in d.glob("*.edited*")) == ["best.edited-2.yaml",
+                                                           "best.edited.yaml"]
     # the run's record of what it wrote lost: kept, to be safe, without claiming an edit
     (d / ".written.json").unlink()
     assert skillcompose_main(["evolve", "--resume", str(d), "--quiet", "--generations", "7"]) == 0
@@ -155,8 +157,9 @@ def test_a_best_yaml_edited_by_a_person_is_kept_when_the_run_writes_again(
     assert kept[1] == (f"{d / 'best.yaml'} may have been edited: the run's record of what it "
                        "wrote there (.written.json) is missing or unreadable: kept as "
                        "best.edited-3.yaml, and the run writes its own best.yaml")
-    assert sorted(p.name for p in d.glob("*.edited*")) == ["best.edited-2.yaml",
-                                                           "best.edited.yaml"]
+    assert len(kept) == 2 and sorted(p.name for p in d.glob("*.edited*")) == [
+        "best.edited-2.yaml", "best.edited-3.yaml", "best.edited.yaml",
+        "best_evolved.edited.yaml"]
 
 
 def test_a_new_run_refuses_a_folder_holding_run_files_without_a_checkpoint(
