@@ -348,6 +348,14 @@ class Genome:
                 for p in bad
             )
             params = c.encode(values)
+            for o in st.transitions:  # a typo'd outcome would vanish from the evolved file
+                if o not in c.outcomes and not (o == "timeout" and st.time_limit is not None):
+                    problems.append(
+                        f"{src}{_line(fsa, 'states', sname, 'transitions', o)}: state {sname}: "
+                        f"{o!r} is not an outcome of skill {c.name} (its outcomes are "
+                        f"{list(c.outcomes)}); remove it or rename it to one of "
+                        f"{list(c.outcomes)}"
+                    )
             edges: list[int] = []
             for o in c.outcomes:
                 t = st.transitions.get(o)
@@ -380,8 +388,8 @@ def _decode_genome(data: tuple[Any, ...], origin: Mapping[str, Any]) -> Genome:
 def _line(fsa: FSA, *keys: str) -> str:
     if fsa.source is None:
         return ""
-    line, _ = fsa.source.where(*keys)
-    return f":{line}" if line is not None else ""
+    line, col = fsa.source.where(*keys)
+    return "" if line is None else f":{line}" if col is None else f":{line}:{col}"
 
 
 class GenomeCompiler:

@@ -181,6 +181,24 @@ def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
     assert "failure" in msg and "state B" in msg  # the unrouted outcome of PickBlock
 
 
+def test_a_seed_fsas_transition_on_an_outcome_its_skill_lacks_is_refused(
+    toy_skills: SkillSet,
+) -> None:
+    """A typo'd outcome (``faliure``) would otherwise vanish from the evolved file."""
+    from evolve import SeedFSAError
+    from skillcompose import loads_fsa
+
+    text = ("format: 1\nname: t\nstart: A\nterminals: [success, failure]\nstates:\n"
+            "  A:\n    skill: PickBlock\n    transitions:\n      success: success\n"
+            "      faliure: A\n      failure: failure\n")
+    with pytest.raises(SeedFSAError) as err:
+        Genome.from_fsa(loads_fsa(text, "typo.yaml"), toy_skills)
+    assert str(err.value) == (
+        "cannot seed evolution from this FSA:\n  typo.yaml:10:16: state A: 'faliure' is not an "
+        "outcome of skill PickBlock (its outcomes are ['success', 'failure']); remove it or "
+        "rename it to one of ['success', 'failure']")
+
+
 def test_seed_fsa_errors_keep_one_problem_per_line(toy_skills: SkillSet) -> None:
     from evolve import SeedFSAError
     from skillcompose import loads_fsa
@@ -213,7 +231,7 @@ def test_seed_fsa_parameters_are_checked_as_the_model_checks_them(
         Genome.from_fsa(fsa, toy_skills)
     said = str(genome.value)
     for problem in model.value.problems:  # the same words, each at its line
-        assert f"seed.yaml:{problem.line}: {problem.render()}" in said
+        assert f"seed.yaml:{problem.line}:{problem.column}: {problem.render()}" in said
 
 
 @settings(max_examples=40, deadline=None)
