@@ -239,8 +239,7 @@ def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
         registry.backend = args.backend
     elif task is not None and task.backend:
         registry.backend = task.backend
-    for target in args.skills:
-        registry.load_module(target)
+    registry.load_modules(args.skills)
     registry.load_entry_points()
     if args.backend and len(registry):
         check_backend(registry, args.backend)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .activation import Starter
 from .blackboard import Blackboard
-from .errors import RegistryError
+from .errors import RegistryError, one_line
 from .executor import CompiledFSA, FSARun, compile_fsa
 from .fsa import FSA, TIMEOUT
 from .skill import Skill, SkillFn, SkillSpec
@@ -96,6 +96,13 @@ def fsa_skill(
     """Make a skill of ``fsa`` whose states' skills come from ``registry``."""
     skill_name = name or fsa.name
     if not skill_name or not skill_name.isidentifier():
+        if fsa.path and name is None:  # a file: say where
+            line, col = fsa.source.where("name") if fsa.source is not None else (None, None)
+            at = "" if line is None or not fsa.name else f":{line}:{col}"
+            raise RegistryError(
+                f"{one_line(fsa.path)}{at}: an FSA file used as a skill needs a `name:` that "
+                f"is an identifier (the skill's name, e.g. FetchJug), got {skill_name!r}"
+            )
         raise RegistryError(
             f"an FSA registered as a skill needs an identifier name, got {skill_name!r}; "
             "set `name:` in the file or pass name=..."

@@ -15,6 +15,7 @@ entry-point group.
 from __future__ import annotations
 
 import difflib
+import graphlib
 import importlib
 import importlib.util
 import inspect
@@ -25,7 +26,7 @@ from importlib import metadata
 from pathlib import Path
 from types import ModuleType
 
-from .errors import RegistryError, UnknownSkillError, exception_text
+from .errors import RegistryError, UnknownSkillError, exception_text, one_line
 from .fsa import FSA
 from .fsafile import load_fsa
 from .nested import fsa_skill
@@ -86,10 +87,55 @@ class Registry:
         and random generator. ``on_timeout`` names the outcome its timeout maps to (default:
         ``"failure"`` when that is a terminal, else a ``timeout`` outcome is added).
         """
-        s = fsa_skill(
-            fsa if isinstance(fsa, FSA) else load_fsa(fsa), self, name=name, on_timeout=on_timeout
-        )
-        return self.add(s)
+        machine = fsa if isinstance(fsa, FSA) else load_fsa(fsa)
+        self._check_free(machine, name or machine.name)
+        return self.add(fsa_skill(machine, self, name=name, on_timeout=on_timeout))
+
+    def _check_free(self, machine: FSA, name: str) -> None:
+        """Refuse an FSA's skill name that a skill has already (its states could run the
+        FSA again: a recursion)."""
+        if name and name in self._impls:
+            where = one_line(machine.path) + ": " if machine.path else ""
+            raise RegistryError(
+                f"{where}the FSA's name {name} is a skill already; an FSA used as a skill "
+                "needs a name of its own: rename it (its `name:`)"
+            )
+
+    def load_modules(self, targets: Iterable[str | ModuleType]) -> list[Skill]:
+        """:meth:`load_module` for each target: skills modules in their order, then FSA
+        files in the order their nesting needs (one that uses the skill another defines
+        after it, whatever order they were given in); FSA files that use each other in a
+        circle are refused in one line."""
+        targets = list(targets)
+        files = [t for t in targets if isinstance(t, str) and t.endswith((".yaml", ".yml"))]
+        added: list[Skill] = []
+        for t in targets:
+            if not (isinstance(t, str) and t in files):
+                added += self.load_module(t)
+        machines = {f: load_fsa(f) for f in dict.fromkeys(files)}
+        for m in machines.values():
+            self._check_free(m, m.name)
+        defines = {m.name: f for f, m in reversed(machines.items()) if m.name}
+        needs = {f: {defines[st.skill] for st in m.states.values() if st.skill in defines}
+                 for f, m in machines.items()}
+        try:
+            order = list(graphlib.TopologicalSorter(needs).static_order())
+        except graphlib.CycleError as exc:
+            circle = [str(f) for f in exc.args[1]]
+            if len(set(circle)) == 1:
+                raise RegistryError(
+                    f"{one_line(circle[0])}: the FSA {machines[circle[0]].name} uses itself as "
+                    "a skill: an FSA cannot contain itself; use another skill there"
+                ) from None
+            raise RegistryError(
+                "the FSA files " + " -> ".join(
+                    f"{one_line(f)} ({machines[f].name})" for f in circle)
+                + " use each other in a circle: an FSA cannot contain itself; break the "
+                "circle"
+            ) from None
+        for f in order:
+            added.append(self.add_fsa(machines[f]))
+        return added
 
     def load_module(self, target: str | ModuleType) -> list[Skill]:
         """Import a module (dotted name, ``.py`` path, or FSA file) and add its skills."""
@@ -145,8 +191,7 @@ class Registry:
         cls, targets: Iterable[str | ModuleType], *, backend: str = DEFAULT_BACKEND
     ) -> Registry:
         reg = cls(backend=backend)
-        for t in targets:
-            reg.load_module(t)
+        reg.load_modules(targets)
         return reg
 
     # -- looking up --------------------------------------------------------------------------

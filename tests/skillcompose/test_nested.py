@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -85,3 +86,61 @@ def test_a_nested_fsa_needs_a_name() -> None:
     reg = Registry.from_modules([demo_skills])
     with pytest.raises(RegistryError, match="needs an identifier name"):
         reg.add_fsa(REACH.replace(name=""))
+
+
+def _chain(tmp_path: Path) -> tuple[str, str]:
+    """reach.yaml (MoveToReach, demo skills) and fetch.yaml (Fetch, using MoveToReach)."""
+    reach = save_fsa(REACH, tmp_path / "reach.yaml").path
+    fetch = save_fsa(_using("MoveToReach", "Fetch"), tmp_path / "fetch.yaml").path
+    assert reach is not None and fetch is not None
+    return str(reach), str(fetch)
+
+
+def _using(skill: str, name: str) -> FSA:
+    """An FSA called ``name`` of one state running ``skill``."""
+    return FSA({"S_1": State(skill, {}, {"success": "success", "failure": "failure"})},
+               start="S_1", name=name)
+
+
+def test_nested_fsa_files_load_in_the_order_their_nesting_needs(tmp_path: Path) -> None:
+    reach, fetch = _chain(tmp_path)
+    orders: list[list[str | ModuleType]] = [[demo_skills, reach, fetch],
+                                            [fetch, reach, demo_skills]]
+    for order in orders:
+        reg = Registry.from_modules(order)
+        assert {"MoveToReach", "Fetch"} <= set(reg)
+
+
+def test_nested_fsa_files_in_a_circle_or_using_themselves_are_one_line(tmp_path: Path) -> None:
+    _, fetch = _chain(tmp_path)
+    loop = save_fsa(_using("Fetch", "Loop"), tmp_path / "loop.yaml").path
+    circle = save_fsa(_using("Loop", "MoveToReach"), tmp_path / "reach.yaml").path
+    assert loop is not None and circle is not None
+    with pytest.raises(RegistryError) as err:
+        Registry.from_modules([demo_skills, fetch, str(loop), str(circle)])
+    assert "use each other in a circle: an FSA cannot contain itself" in str(err.value)
+    assert "(Fetch)" in str(err.value) and "(Loop)" in str(err.value)
+    itself = save_fsa(_using("MoveToReach", "MoveToReach"), tmp_path / "self.yaml")
+    with pytest.raises(RegistryError, match=r"self.yaml: the FSA MoveToReach uses itself"):
+        Registry.from_modules([demo_skills, str(itself.path)])
+
+
+def test_an_fsa_file_named_like_a_skill_is_refused(tmp_path: Path) -> None:
+    """Else it became another backend of that skill, which its own states could run: a
+    recursion."""
+    clash = save_fsa(REACH.replace(name="MoveToObject"), tmp_path / "clash.yaml").path
+    with pytest.raises(RegistryError) as err:
+        Registry.from_modules([demo_skills, str(clash)])
+    assert str(err.value) == (f"{clash}: the FSA's name MoveToObject is a skill already; an "
+                              "FSA used as a skill needs a name of its own: rename it (its "
+                              "`name:`)")
+
+
+def test_an_fsa_file_without_a_usable_name_says_which_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    text = save_fsa(REACH, bad).path
+    assert text is not None
+    bad.write_text(bad.read_text().replace("name: MoveToReach", "name: move to reach"))
+    with pytest.raises(RegistryError) as err:
+        Registry.from_modules([demo_skills, str(bad)])
+    assert str(err.value).startswith(f"{bad}:5:1: an FSA file used as a skill needs a `name:`")
