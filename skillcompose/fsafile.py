@@ -491,8 +491,10 @@ class _Reader:
         self, node: Node, what: str, allowed: tuple[str, ...] | None, *,
         state: str | None = None, fix: str | None = None,
     ) -> dict[str, tuple[Node, Node]] | None:
+        if state is not None and what.startswith(f"state {state}"):  # said once, by state=
+            what = what[len(f"state {state}"):].strip()
         if not isinstance(node, MappingNode):
-            self.fail(node, f"{what} must be a mapping (key: value lines), "
+            self.fail(node, f"{what or 'a state'} must be a mapping (key: value lines), "
                       f"got {_node_kind(node)}", state=state, fix=fix)
             return None
         out: dict[str, tuple[Node, Node]] = {}
@@ -502,7 +504,8 @@ class _Reader:
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f"did you mean {close[0]!r}?" if close else \
                     f"allowed keys are {', '.join(allowed)}"
-                self.fail(k, f"{what}: unknown key {key!r}", state=state, key=key, fix=hint)
+                self.fail(k, f"{what + ': ' if what else ''}unknown key {key!r}", state=state,
+                          key=key, fix=hint)
                 continue
             out[key] = (k, v)
         return out

@@ -240,7 +240,9 @@ class Registry:
             close = difflib.get_close_matches(name, list(self._impls), n=3)
             hint = f"; did you mean {' or '.join(close)}?" if close else ""
             known = ", ".join(sorted(self._impls)) or "none (load skills with --skills MODULE)"
-            raise UnknownSkillError(f"unknown skill {name!r}{hint} Known skills: {known}") from None
+            raise UnknownSkillError(
+                f"unknown skill {name!r}{hint or '; load the module or FSA file that defines it'}"
+                f" (--skills, or the task's registry). Known skills: {known}") from None
 
     def __repr__(self) -> str:
         return f"Registry({sorted(self._impls)}, backend={self.backend!r})"

@@ -165,7 +165,7 @@ def _error(text: str) -> str:
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n",
          "bad.yaml:5:5: state A: missing key 'transitions'"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skil: X\n    transitions: {ok: success}\n",
-         "bad.yaml:5:5: state A: state A: unknown key 'skil'; did you mean 'skill'?"),
+         "bad.yaml:5:5: state A: unknown key 'skil'; did you mean 'skill'?"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: [X]\n    transitions: {ok: success}\n",
          "bad.yaml:5:12: state A: skill must be a name (text), got a list"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    params: {v: [[1], 2]}\n"
