@@ -149,8 +149,13 @@ class FSA:
                 "no terminal outcomes", fix="set `terminals: [success, failure]`",
                 at=("terminals",),
             ))
-        for t in self.terminals:
-            if not isinstance(t, str) or not t.isidentifier():
+        for k, t in enumerate(self.terminals):
+            if t in self.terminals[:k]:
+                out.append(self._problem(
+                    f"terminal outcome {t!r} is listed twice", fix="keep one",
+                    at=("terminals",),
+                ))
+            elif not isinstance(t, str) or not t.isidentifier():
                 out.append(self._problem(
                     f"terminal outcome {t!r} must be an identifier", at=("terminals",)
                 ))

@@ -164,6 +164,9 @@ def _error(text: str) -> str:
          "bad.yaml:5:3: states: key 'A' appears twice (first on line 4)"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n",
          "bad.yaml:5:5: state A: missing key 'transitions'"),
+        ("format: 1\nstart: A\nterminals: [success, failure, success]\n"
+         "states: {A: {skill: X, transitions: {ok: success}}}\n",
+         "bad.yaml:3:1: terminal outcome 'success' is listed twice; keep one"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skil: X\n    transitions: {ok: success}\n",
          "bad.yaml:5:5: state A: unknown key 'skil'; did you mean 'skill'?"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: [X]\n    transitions: {ok: success}\n",
