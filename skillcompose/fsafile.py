@@ -721,9 +721,13 @@ def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None 
     doc = origin.document() if isinstance(origin, FileOrigin) else None
     if isinstance(doc, CommentedMap) and isinstance(origin, FileOrigin):
         _sync_document(doc, fsa, registry, origin.renames)
-    else:
-        doc = _new_document(fsa, registry, header)
-    return _dump(doc)
+        text = _dump(doc)
+        # a file written with Windows line ends keeps them (its comments carry their
+        # ends through the round trip, the rest would be "\n": one convention, theirs)
+        if origin.text.count("\r\n") * 2 > origin.text.count("\n"):
+            text = text.replace("\n", "\r\n")
+        return text
+    return _dump(_new_document(fsa, registry, header))
 
 
 def in_layout_of(fsa: FSA, seed: FSA, keep: Collection[str], header: str) -> FSA:
@@ -775,7 +779,8 @@ def _dump(doc: Any) -> str:
     yaml.width = 100
     buf = io.StringIO()
     yaml.dump(doc, buf)
-    return buf.getvalue()
+    # comments read from a file with "\r\n" or "\r" line ends keep them: one "\n" for all
+    return buf.getvalue().replace("\r\n", "\n").replace("\r", "\n")
 
 
 def save_fsa(

@@ -91,6 +91,19 @@ def test_saving_an_unchanged_file_keeps_it_byte_for_byte(tmp_path: Path) -> None
     assert path.read_text() == HAND_WRITTEN
 
 
+@pytest.mark.parametrize(("ends", "kept"), [("\r\n", "\r\n"), ("\r", "\n"), ("\n", "\n")])
+def test_an_edited_file_keeps_one_kind_of_line_end(tmp_path: Path, ends: str, kept: str) -> None:
+    """Windows line ends stay Windows line ends; lone carriage returns become "\\n"; never
+    a mix (the comments used to keep theirs and the rest take "\\n")."""
+    path = tmp_path / "pour.fsa.yaml"
+    path.write_bytes(HAND_WRITTEN.replace("\n", ends).encode())
+    save_fsa(load_fsa(path).with_params("Move_2", approach=0.15), path)
+    data = path.read_bytes()
+    lines = HAND_WRITTEN.count("\n")
+    assert data.count(kept.encode()) == lines and data.count(b"\r") == kept.count("\r") * lines
+    assert b"approach: 0.15" in data and load_fsa(path).states["Move_2"].params["approach"] == 0.15
+
+
 _names = st.from_regex(r"[A-Z][a-z]{0,6}_[0-9]{1,3}", fullmatch=True)
 _values = st.one_of(
     st.floats(allow_nan=False, allow_infinity=False, width=64),
