@@ -71,6 +71,7 @@ import numpy as np
 
 from robots.collision import Box
 from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
+from skillcompose.errors import RegistryError
 from skillcompose.fsa import FSA, State
 from skillcompose.fsafile import load_fsa
 from skillcompose.nested import FSASkill, fsa_skill
@@ -467,7 +468,16 @@ def make_move_to_reach(
     """MoveToReach from an evolved move-to-push FSA file (``examples/move_to_reach.fsa.yaml``):
     validated against :func:`reach_registry` when loaded; its ``timeout`` becomes
     ``failure``."""
-    nested = fsa_skill(load_fsa(path), reach_registry(topology, kinematic=kinematic),
+    machine = load_fsa(path)
+    if sorted(machine.terminals) != ["failure", "success"]:  # else renamed ends go unseen
+        line, col = machine.source.where("terminals") if machine.source else (None, None)
+        at = "" if line is None else f":{line}:{col}"
+        raise RegistryError(
+            f"{path}{at}: MoveToReach ends in success or failure (what stacking reads of "
+            f"it), but this FSA's terminals are {list(machine.terminals)}; set `terminals: "
+            "[success, failure]` and route its states' outcomes to them"
+        )
+    nested = fsa_skill(machine, reach_registry(topology, kinematic=kinematic),
                        name="MoveToReach", on_timeout="failure")
     return MoveToReach(nested)
 

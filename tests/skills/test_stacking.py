@@ -188,6 +188,25 @@ def test_task_settings_are_checked() -> None:
     assert task.step_limit == 15 and task.settings["p_fail"] == 0.3
 
 
+@pytest.mark.parametrize(("terminals", "end"), [("[done, failure]", "done"),
+                                               ("[success, failure, stuck]", "success")])
+def test_a_move_to_reach_file_with_other_ends_is_refused(
+    tmp_path: Path, terminals: str, end: str,
+) -> None:
+    """Stacking reads success or failure of MoveToReach: a renamed or added end would have
+    counted as failure without a word."""
+    from skillcompose.errors import RegistryError
+
+    text = (EXAMPLES / "move_to_reach.fsa.yaml").read_text()
+    assert "terminals: [success, failure]" in text
+    path = tmp_path / "mtr.yaml"
+    path.write_text(text.replace("terminals: [success, failure]", f"terminals: {terminals}")
+                    .replace("success: success", f"success: {end}"))
+    with pytest.raises(RegistryError, match=r"mtr.yaml:\d+:1: MoveToReach ends in success or "
+                       r"failure .* this FSA's terminals are \["):
+        st.make_move_to_reach(path, kinematic=False)
+
+
 def test_worlds_need_move_to_reach_in_some_and_not_others() -> None:
     near = far = 0
     for rng in trial_rngs(5, 60):
