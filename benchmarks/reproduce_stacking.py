@@ -231,7 +231,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     runs = run_seeds(range(args.seeds), cfg, args.workers, args.check)
     best_run = min(runs, key=lambda r: (not r.solved, r.fitness_check, r.states_simplified))
     best_file = out / "stacking_best.fsa.yaml"
-    save_fsa(best_run.fsa, best_file)
+    save_fsa(best_run.fsa, best_file, load_task(TASK).registry, header=(
+        f"The best stacking FSA of benchmarks/reproduce_stacking.py (seed {best_run.seed}, "
+        f"simplified). Run it with: skillcompose run FILE --task {TASK}"))
     plot_histories(runs, out / "stacking_fitness.png")
     sweep = figure12(best_file, out, args.reps, args.workers)
     stacked, outcomes, caption = kinematic_scenes(best_run.fsa, args.scenes,
