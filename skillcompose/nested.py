@@ -22,22 +22,29 @@ from .skill import Skill, SkillFn, SkillSpec
 if TYPE_CHECKING:
     from .registry import Registry
 
-__all__ = ["FSASkill", "fsa_skill"]
+__all__ = ["MAX_NESTING", "FSASkill", "fsa_skill"]
+
+MAX_NESTING = 50
+"""How deep FSAs may nest (an FSA whose state runs an FSA whose state runs ...): each level
+takes several of Python's stack frames when it compiles and runs; 150 levels still ran
+where 200 exhausted the stack."""
 
 
 class FSASkill(Skill):
     """A skill whose implementation is an FSA: long-running, ticked state by state."""
 
-    __slots__ = ("_compiled", "fsa", "registry", "timeout_outcome")
+    __slots__ = ("_compiled", "depth", "fsa", "registry", "timeout_outcome")
     long_running = True
 
     def __init__(
-        self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str
+        self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str,
+        depth: int = 1,
     ) -> None:
         super().__init__(spec, None, backend="default")
         self.fsa = fsa
         self.registry = registry
         self.timeout_outcome = timeout_outcome
+        self.depth = depth  # 1: its states run plain skills; k + 1: one runs an FSA of k
         self._compiled: dict[str, CompiledFSA] = {}
 
     def compiled(self, backend: str | None = None) -> CompiledFSA:
@@ -108,6 +115,16 @@ def fsa_skill(
             "set `name:` in the file or pass name=..."
         )
     fsa.validate(registry)
+    depth = 1 + max((impl.depth for st in fsa.states.values()
+                     for backend in registry.backends(st.skill)
+                     if isinstance(impl := registry.resolve(st.skill, backend), FSASkill)),
+                    default=0)
+    if depth > MAX_NESTING:  # compiling and running it would exhaust Python's stack
+        where = f"{one_line(fsa.path)}: " if fsa.path else ""
+        raise RegistryError(
+            f"{where}the FSA {skill_name} nests FSAs {depth} deep, more than the "
+            f"{MAX_NESTING} a run can hold; flatten some levels into one FSA"
+        )
     outcomes = list(fsa.terminals)
     if on_timeout is None:
         on_timeout = "failure" if "failure" in outcomes else TIMEOUT
@@ -122,4 +139,4 @@ def fsa_skill(
         key_types={k: t for s in specs for k, t in s.key_types.items()},
         doc=f"FSA {skill_name} ({len(fsa.states)} states, start {fsa.start})",
     )
-    return FSASkill(spec, fsa, registry, on_timeout)
+    return FSASkill(spec, fsa, registry, on_timeout, depth)

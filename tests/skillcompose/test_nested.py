@@ -144,3 +144,21 @@ def test_an_fsa_file_without_a_usable_name_says_which_file(tmp_path: Path) -> No
     with pytest.raises(RegistryError) as err:
         Registry.from_modules([demo_skills, str(bad)])
     assert str(err.value).startswith(f"{bad}:5:1: an FSA file used as a skill needs a `name:`")
+
+
+def test_fsas_nested_past_the_limit_are_refused_and_the_limit_runs() -> None:
+    """Past the limit the run ran out of Python's stack ("unexpected RecursionError")."""
+    from skillcompose.nested import MAX_NESTING
+
+    reg = Registry.from_modules([demo_skills])
+    reg.add_fsa(FSA({"S_1": State("Recognise", {}, {"success": "success"})}, start="S_1",
+                    name="L1"))
+    inner = "L1"
+    for level in range(2, MAX_NESTING + 1):
+        reg.add_fsa(_using(inner, f"L{level}"))
+        inner = f"L{level}"
+    top = _using(inner, "Top")
+    assert compile_fsa(top, reg).run(Blackboard(), 0).outcome == "success"
+    with pytest.raises(RegistryError, match=rf"the FSA Top nests FSAs {MAX_NESTING + 1} deep, "
+                       rf"more than the {MAX_NESTING} a run can hold"):
+        reg.add_fsa(top)
