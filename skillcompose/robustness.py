@@ -136,6 +136,7 @@ def robustness_sweep(
     backend: str | None = None,
     step_limit: int | None = None,
     progress: bool = True,
+    skills: Sequence[str] = (),
 ) -> list[SweepRow]:
     """Run ``fsa`` ``reps`` times at each value of the task setting ``setting``.
 
@@ -145,6 +146,8 @@ def robustness_sweep(
     - ``p_fail``: the values of ``setting`` to sweep (the failure probability by default).
     - ``settings``: the task's other settings, kept fixed.
     - ``workers``: processes; the rows are the same for any number.
+    - ``skills``: modules and FSA files whose skills to add to the task's (nested FSAs, as
+      ``--skills`` gives them), loaded in every worker.
     - ``progress``: a progress bar on a terminal (see :func:`~skillcompose.progress.progress_bar`).
 
     Returns one :class:`SweepRow` per value, in the order given.
@@ -165,13 +168,16 @@ def robustness_sweep(
     machine = fsa if isinstance(fsa, FSA) else load_fsa(fsa)
     if step_limit is not None:
         machine = machine.replace(step_limit=step_limit)
-    machine = machine.replace(source=None)  # plain data, cheap to send to workers
-    # Compile once here so that an FSA that does not fit the task fails before any work.
-    first = _build(ref, setting, values[0])
+    # Compile once here so that an FSA that does not fit the task fails before any work
+    # (with its file's lines and columns in the error).
+    skills = tuple(str(s) for s in skills)
+    first = _build(ref, setting, values[0], skills)
     compile_fsa(machine, first.registry, backend or first.backend)
+    machine = machine.replace(source=None)  # plain data, cheap to send to workers
 
     jobs = [
-        _Chunk(machine, ref, setting, v, backend, seed, start, stop, step_limit is None)
+        _Chunk(machine, ref, setting, v, backend, seed, start, stop, step_limit is None,
+               skills)
         for v in values
         for start, stop in _chunks(reps, workers, len(values))
     ]
@@ -220,6 +226,7 @@ class _Chunk:
     start: int
     stop: int
     task_step_limit: bool = True  # the task's step limit, not the FSA's (not overridden)
+    skills: tuple[str, ...] = ()  # modules and FSA files added to the task's skills
 
 
 def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
@@ -229,7 +236,7 @@ def _run_chunk(job: _Chunk) -> tuple[np.ndarray, np.ndarray, Counter[str], int]:
     from .executor import compile_fsa
     from .task import skill_fault
 
-    task = _build(job.ref, job.setting, job.value)
+    task = _build(job.ref, job.setting, job.value, job.skills)
     compiled = task.compile(job.fsa, job.backend) if job.task_step_limit else \
         compile_fsa(job.fsa, task.registry, job.backend or task.backend)
     n = job.stop - job.start
@@ -252,10 +259,13 @@ def _chunks(reps: int, workers: int, points: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in itertools.pairwise(bounds) if b > a]
 
 
-def _build(ref: TaskRef, setting: str, value: float) -> Task:
+def _build(ref: TaskRef, setting: str, value: float, skills: Sequence[str] = ()) -> Task:
     from .task import TaskRef
 
-    return TaskRef(ref.module, {**ref.settings, setting: value}).build()
+    task = TaskRef(ref.module, {**ref.settings, setting: value}).build()
+    if skills:
+        task.registry.load_modules(skills)
+    return task
 
 
 def _task_ref(task: str | Task, settings: Mapping[str, Any] | None) -> TaskRef:
@@ -425,6 +435,9 @@ def register_cli(subparsers: Any) -> None:
                    help="processes (default: the number of CPUs); results do not depend on it")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", type=setting,
                    dest="settings", help="another task setting, kept fixed; repeatable")
+    p.add_argument("--skills", action="append", default=[], metavar="MODULE",
+                   type=module_or_file, help="a module (dotted name or .py file) or FSA file "
+                   "whose skills to add to the task's (a nested FSA, say); repeatable")
     p.add_argument("--backend", help="which implementation of each skill to run")
     p.add_argument("--step-limit", type=whole(1, MAX_STEP_LIMIT),
                    help="steps after which a run ends in timeout (default: the task's)")
@@ -459,6 +472,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         args.file, args.task, args.values, reps=args.reps, seed=args.seed, workers=args.workers,
         setting=args.setting, settings=settings, backend=args.backend,
         step_limit=args.step_limit, progress=not getattr(args, "quiet", False),
+        skills=args.skills,
     )
     print(format_table(rows))
     csv_path = args.csv or (str(Path(args.output).with_suffix(".csv")) if args.output else None)

@@ -157,3 +157,26 @@ def test_cli_rejects_setting_the_swept_setting(tmp_path: Path) -> None:
     with pytest.raises(RobustnessError, match="conflicts"):
         run_cli(["robustness", REFERENCE, "--task", TASK, "--set", "p_fail=0.1",
                  "--reps", "5", "--csv", str(tmp_path / "x.csv")])
+
+
+def test_a_sweep_takes_nested_fsa_files_and_locates_the_files_problems(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str],
+) -> None:
+    from skillcompose import save_fsa
+    from skillcompose.cli import main
+
+    fetch = save_fsa(FSA({
+        "Find": State("RecogniseObject", {}, {"success": "Reach"}),
+        "Reach": State("MoveToObject", {}, {"success": "success", "failure": "Reach"}),
+    }, start="Find", step_limit=10, name="FetchJug"), tmp_path / "fetch.yaml").path
+    outer = save_fsa(FSA({"Fetch": State("FetchJug", {}, {"success": "success",
+                                                          "failure": "failure"})},
+                         start="Fetch", step_limit=5), tmp_path / "outer.yaml").path
+    args = ["robustness", str(outer), "--task", TASK, "--p-fail", "0,1", "--reps", "6",
+            "--workers", "2", "--quiet"]
+    assert main([*args, "--skills", str(fetch)]) == 0  # loaded in the workers too
+    rows = [line.split() for line in capsys.readouterr().out.strip().splitlines()[1:]]
+    assert [(r[0], r[6]) for r in rows] == [("0", "1"), ("1", "0")]  # value, success_rate
+    assert main(args) == 2
+    assert capsys.readouterr().err.startswith(
+        f"skillcompose robustness: error: {outer}:10:12: state Fetch: unknown skill 'FetchJug'")
