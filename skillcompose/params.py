@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import re
 import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -126,7 +127,7 @@ class ParamSpec:
                     return c
             raise ParamError(bad)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParamError(bad + " (a number)")
+            raise ParamError(bad + _number_hint(value))
         if self.kind == "int" and isinstance(value, float):
             if not value.is_integer():
                 raise ParamError(bad + " (a whole number)")
@@ -397,3 +398,22 @@ def _check_option(option: Any, where: str) -> None:
 
 
 _MISSING: Any = object()  # the default of a parameter declared without one (None is a value)
+
+
+def _number_hint(value: Any) -> str:
+    """What to change when text stands where a number goes: the forms people write."""
+    if not isinstance(value, str):
+        return " (a number)"
+    text = value.strip()
+    if "\u2212" in text:
+        return " (a number): replace the sign \u2212 (U+2212) with the ASCII minus -"
+    head = re.match(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", text)
+    if head is None:
+        return " (a number)"
+    rest = text[head.end():]
+    if not rest:
+        return " (a number, not text): remove the quotes"
+    if rest.startswith("#"):
+        return " (a number): put a space before # to start a comment"
+    return (f" (a number): write {head.group(0)} alone, without {clip(repr(rest.strip()), 30)}"
+            " (the unit is the skill's)")

@@ -182,3 +182,21 @@ def test_whole_numbers_within_the_limit_go_through_the_genes_exactly(low: int, h
     draw = random.Random(low ^ high)
     values = [low, high, low + 1, high - 1, *(draw.randint(low, high) for _ in range(3000))]
     assert [spec.from_genes(spec.to_genes(v)) for v in values] == values
+
+
+@pytest.mark.parametrize(("value", "fix"), [
+    ('"0.6"', "(a number, not text): remove the quotes"),
+    ("0.6 m", "(a number): write 0.6 alone, without 'm' (the unit is the skill's)"),
+    ("0.6# m", "(a number): put a space before # to start a comment"),
+    ("\u22120.6", "(a number): replace the sign \u2212 (U+2212) with the ASCII minus -"),
+    ("near", "(a number)"),
+])
+def test_text_where_a_number_goes_gets_the_fix_for_its_form(
+    registry: Registry, value: str, fix: str,
+) -> None:
+    fsa = loads_fsa(f"format: 1\nstart: Move\nstates:\n  Move:\n    skill: MoveToObject\n"
+                    f"    params:\n      approach: {value}\n"
+                    "    transitions: {success: success, failure: failure}\n", "f.yaml")
+    with pytest.raises(FSAValidationError) as err:
+        fsa.validate(registry)
+    assert str(err.value).endswith(f"expected float in [0.05, 0.3] m {fix}"), str(err.value)
