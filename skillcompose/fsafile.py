@@ -470,6 +470,9 @@ class _Reader:
                 value = v
             elif name == "str":
                 value = v
+            elif name == "merge":
+                raise _BadScalar("merge keys (<<) are not allowed in FSA files",
+                                 "write the keys out in full")
             else:
                 raise _BadScalar(f"YAML tag {tag!r} is not allowed in FSA files",
                                  f"remove {_short_tag(tag)}")
@@ -550,9 +553,9 @@ class _Reader:
             root = yaml.compose(self.text)
         except MarkedYAMLError as exc:
             what = exc.problem or exc.context or "malformed YAML"
-            raise _Refused(_at(exc.problem_mark or exc.context_mark, Problem(
-                f"not valid YAML: {what}", fix="check indentation, colons and quotes near "
-                "this line",
+            mark = exc.problem_mark or exc.context_mark
+            raise _Refused(_at(mark, Problem(
+                f"not valid YAML: {what}", fix=_yaml_fix(what, self.text, mark),
             ))) from None
         except ReaderError as exc:
             line, col = _line_col(self.text, exc.position)
@@ -781,6 +784,23 @@ def _dump(doc: Any) -> str:
     yaml.dump(doc, buf)
     # comments read from a file with "\r\n" or "\r" line ends keep them: one "\n" for all
     return buf.getvalue().replace("\r\n", "\n").replace("\r", "\n")
+
+
+def _yaml_fix(what: str, text: str, mark: Any) -> str:
+    """The fix for a YAML syntax error, for the slips people make by hand."""
+    line = ""  # the line of the error and the one before it: YAML often sees a slip late
+    if mark is not None and getattr(mark, "line", None) is not None:
+        lines = text.splitlines()
+        line = "\n".join(lines[max(0, mark.line - 1):mark.line + 1])
+    if "another document" in what or "document start" in what:
+        return "an FSA file holds one document: remove the `---` line (or the second FSA)"
+    if "'\\t'" in what or "\t" in what:
+        return "replace the tab with spaces"
+    if "\u00a0" in line:
+        return "a non-breaking space (U+00A0) is near here: replace it with a plain space"
+    if "mapping values are not allowed" in what and re.search(r"^[^#]*\w:[^\s/]", line, re.M):
+        return "put a space after each ':' that ends a key (`success: Grasp`)"
+    return "check indentation, colons and quotes near this line"
 
 
 def save_fsa(

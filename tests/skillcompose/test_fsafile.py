@@ -152,6 +152,9 @@ def _error(text: str) -> str:
     return str(info.value)
 
 
+_ONE = "format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    transitions:\n      ok: success\n"
+
+
 @pytest.mark.parametrize(
     "text, expected",
     [
@@ -177,6 +180,20 @@ def _error(text: str) -> str:
          "bad.yaml:5:3: states: key 'A' appears twice (first on line 4)"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n",
          "bad.yaml:5:5: state A: missing key 'transitions'"),
+        # slips made by hand in the YAML itself, each with its own fix
+        (_ONE + "---\nformat: 1\n", "bad.yaml:8:1: not valid YAML: but found another "
+         "document; an FSA file holds one document: remove the `---` line (or the second FSA)"),
+        (_ONE.replace("      ok: success\n", "      <<: {ok: success}\n"),
+         "bad.yaml:7:7: states.A.transitions: merge keys (<<) are not allowed in FSA files; "
+         "write the keys out in full"),
+        (_ONE.replace("      ok: success\n", "      ok:success\n      no: failure\n"),
+         "bad.yaml:8:9: not valid YAML: mapping values are not allowed here; put a space after "
+         "each ':' that ends a key (`success: Grasp`)"),
+        (_ONE.replace("  A:\n", "  A:\t# the state\n"), "bad.yaml:4:5: not valid YAML: found "
+         "character '\\t' that cannot start any token; replace the tab with spaces"),
+        (_ONE.replace("skill: X", "skill:\u00a0X"), "bad.yaml:6:16: not valid YAML: mapping "
+         "values are not allowed here; a non-breaking space (U+00A0) is near here: replace it "
+         "with a plain space"),
         ("format: 1\nstart: A\nterminals: [success, failure, success]\n"
          "states: {A: {skill: X, transitions: {ok: success}}}\n",
          "bad.yaml:3:1: terminal outcome 'success' is listed twice; keep one"),
