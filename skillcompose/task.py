@@ -9,6 +9,7 @@ settings alone (:class:`TaskRef`).
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext, suppress
 from dataclasses import dataclass, field, replace
@@ -16,10 +17,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .arguments import MAX_TRIALS
 from .blackboard import Blackboard
 from .errors import SkillcomposeError, clip, control_characters
 from .executor import CompiledFSA, FSARun, RunResult, compile_fsa, trial_rngs
-from .fsa import DEFAULT_TERMINALS, ERROR, FSA
+from .fsa import DEFAULT_TERMINALS, ERROR, FSA, MAX_STEP_LIMIT
 from .registry import Registry, describe_exception, import_target
 
 __all__ = ["Task", "TaskError", "TaskRef", "Trial", "load_task", "skill_fault", "trials"]
@@ -84,7 +86,7 @@ def trials(
         run: FSARun | None = None
         try:
             with each() if each is not None else nullcontext():
-                bb = setup(rng) if setup is not None else Blackboard()
+                bb = _blackboard(setup(rng)) if setup is not None else Blackboard()
                 run = FSARun(compiled, bb, rng, trace=trace_first and k == start,
                              propagate=propagate)
                 run.tick(True)  # to the run's end (as CompiledFSA.run)
@@ -100,6 +102,25 @@ def trials(
             yield Trial(k, ended, bb, worst)
             continue
         yield Trial(k, result, bb, fitness)
+
+
+def _blackboard(bb: Any) -> Blackboard:
+    """What a world setup gave back, which must be a blackboard."""
+    if not isinstance(bb, Blackboard):
+        raise TypeError(f"the world setup returned {clip(repr(bb), 40)}, not a Blackboard; "
+                        "return one: Blackboard({...})")
+    return bb
+
+
+def _number(value: Any, task: str) -> float:
+    """What the fitness of ``task`` gave back, which must be a number and not NaN."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"the fitness of task {task} returned {clip(repr(value), 40)}, not a "
+                        "number; return a float")
+    if math.isnan(value):
+        raise ValueError(f"the fitness of task {task} returned NaN; return a number (inf or "
+                         "-inf for the worst)")
+    return float(value)
 
 
 @dataclass(frozen=True)
@@ -154,6 +175,37 @@ class Task:
                 f"task name {clip(repr(self.name), 60)} must be non-empty text without "
                 "control characters (line breaks, escapes); give Task(name=...) another name"
             )
+        me = f"task {self.name}"
+        for field_, most in (("trials", MAX_TRIALS), ("step_limit", MAX_STEP_LIMIT)):
+            value = getattr(self, field_)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or \
+                    not 1 <= int(value) <= most:
+                raise TaskError(f"{me}: {field_} = {clip(repr(value), 40)}: expected a whole "
+                                f"number from 1 to {most:,}")
+            object.__setattr__(self, field_, int(value))
+        for field_ in ("minimize", "deterministic"):
+            if not isinstance(getattr(self, field_), bool):
+                raise TaskError(f"{me}: {field_} = {clip(repr(getattr(self, field_)), 40)}: "
+                                "expected True or False")
+        for field_ in ("skills", "terminal_skills", "terminals"):
+            value = getattr(self, field_)
+            if value is None and field_ != "terminals":
+                continue
+            if isinstance(value, str) or not isinstance(value, Sequence) or \
+                    not all(isinstance(v, str) for v in value):
+                raise TaskError(f"{me}: {field_} = {clip(repr(value), 40)}: expected a tuple "
+                                f"of names, e.g. {field_}=('success', 'failure')"
+                                if field_ == "terminals" else
+                                f"{me}: {field_} = {clip(repr(value), 40)}: expected a tuple "
+                                f"of skill names, e.g. {field_}=('Carry',)")
+            object.__setattr__(self, field_, tuple(value))
+        if isinstance(self.target, bool) or not isinstance(self.target, numbers.Real) or \
+                math.isnan(self.target):
+            raise TaskError(f"{me}: target = {clip(repr(self.target), 40)}: expected a number")
+        if not callable(self.setup) or not callable(self.fitness):
+            which = "setup" if not callable(self.setup) else "fitness"
+            raise TaskError(f"{me}: {which} = {clip(repr(getattr(self, which)), 40)}: "
+                            "expected a function")
 
     @property
     def worst(self) -> float:
@@ -176,7 +228,7 @@ class Task:
     def score(self, result: RunResult, bb: Blackboard) -> float:
         if result.outcome == ERROR:
             return self.worst
-        return float(self.fitness(result.outcome, bb, result.steps))
+        return _number(self.fitness(result.outcome, bb, result.steps), self.name)
 
     def guarded(self) -> Task:
         """This task with its world setup and fitness guarded: whatever they raise (an
@@ -193,21 +245,33 @@ class Task:
             return TaskError(f"task {where}: {what} raised {describe_exception(exc)}{given}",
                              settings=settings)
 
+        def wrong(exc: Exception) -> TaskError:  # what came back, not where: the task's
+            given = f" (settings: {_args(settings)})" if settings else ""
+            return TaskError(f"task {where}: {exc}{given}", settings=settings)
+
         def guarded_setup(rng: np.random.Generator) -> Blackboard:
             try:
-                return setup(rng)
+                bb = setup(rng)
             except KeyboardInterrupt:
                 raise
             except BaseException as exc:
                 raise fail("setting up the world", exc) from exc
+            try:
+                return _blackboard(bb)
+            except TypeError as exc:
+                raise wrong(exc) from None
 
         def guarded_fitness(outcome: str, bb: Blackboard, steps: int) -> float:
             try:
-                return fitness(outcome, bb, steps)
+                value = fitness(outcome, bb, steps)
             except KeyboardInterrupt:
                 raise
             except BaseException as exc:
                 raise fail("its fitness", exc) from exc
+            try:
+                return _number(value, self.name)
+            except (TypeError, ValueError) as exc:
+                raise wrong(exc) from None
 
         return replace(self, setup=guarded_setup, fitness=guarded_fitness)
 
