@@ -32,6 +32,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from skillcompose import FSA, dumps_fsa, load_fsa, loads_fsa
+from skillcompose.arguments import MAX_WORKERS
 from skillcompose.fsafile import in_layout_of
 from skillcompose.task import Task
 
@@ -912,6 +913,7 @@ def evolve(
     - ``progress``: progress on stderr (or on the given stream): a live line on a
       terminal, a line every 5 s otherwise; both show the faults so far.
     """
+    _check_arguments(task, cfg, workers, progress, on_generation, resume, out_dir)
     if backend not in BACKENDS:
         raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     rundir: RunDir | None = None
@@ -986,6 +988,39 @@ def _resumed(
             "workers, when workers are replaced and how often it checkpoints)"
         )
     return record, recorded_cfg
+
+
+def _check_arguments(
+    task: Any, cfg: Any, workers: Any, progress: Any, on_generation: Any, resume: Any,
+    out_dir: Any,
+) -> None:
+    """The kinds of :func:`evolve`'s arguments, refused in one line naming the fix (else
+    they fail deep inside, or after a generation has run)."""
+    if not isinstance(task, Task):
+        raise TypeError(f"evolve() takes a Task, got {type(task).__name__}; load one with "
+                        "skillcompose.task.load_task('examples.toy_task', ...)")
+    if cfg is not None and not isinstance(cfg, EvolutionConfig):
+        raise TypeError(f"evolve(cfg=...) takes an EvolutionConfig, got {type(cfg).__name__}"
+                        "; write EvolutionConfig(**PRESETS['robust']), say")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or not 1 <= workers <= MAX_WORKERS):
+        raise EvolutionError(f"workers = {workers!r}: expected a whole number from 1 to "
+                             f"{MAX_WORKERS} (or None: every core)")
+    if not isinstance(progress, bool) and not callable(getattr(progress, "write", None)):
+        raise TypeError(f"evolve(progress=...) takes True, False or a stream, got "
+                        f"{type(progress).__name__}")
+    if on_generation is not None and not callable(on_generation):
+        raise TypeError(f"evolve(on_generation=...) takes a function, got "
+                        f"{type(on_generation).__name__}")
+    for name, path in (("resume", resume), ("out_dir", out_dir)):
+        if path is not None and not isinstance(path, (str, os.PathLike)):
+            raise TypeError(f"evolve({name}=...) takes a folder's path, got "
+                            f"{type(path).__name__}")
+        if path is not None and Path(path).exists() and not Path(path).is_dir():
+            raise EvolutionError(f"{name}={os.fspath(path)!r} is not a folder; give the run's "
+                                 "folder" if name == "resume" else
+                                 f"{name}={os.fspath(path)!r} is not a folder; give a new "
+                                 "folder for the run")
 
 
 def _evolve(

@@ -187,7 +187,8 @@ class EvolutionConfig:
         if self.topology not in TOPOLOGIES:
             problems.append(f"topology = {self.topology!r}: choose one of "
                             f"{', '.join(TOPOLOGIES)}")
-        for name in ("unique_children", "confirm_feedback", "neutral"):
+        for name in ("unique_children", "confirm_feedback", "neutral", "cache", "parsimony",
+                     "common_random_numbers"):
             if not isinstance(getattr(self, name), bool):
                 problems.append(f"{name} = {getattr(self, name)!r}: expected true or false")
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 import time
 import traceback
 from collections import Counter
@@ -321,6 +322,9 @@ class FSARun:
     ) -> None:
         if bb is None:
             bb = Blackboard()
+        elif not isinstance(bb, Blackboard):
+            raise TypeError(f"a run takes a Blackboard (or None), got {type(bb).__name__}; "
+                            "wrap it: Blackboard({...})")
         if not isinstance(rng, np.random.Generator):
             rng = np.random.default_rng(rng)
         types = bb._types  # the program's typed keys, declared on the run's blackboard
@@ -601,6 +605,12 @@ def compile_fsa(fsa: FSA, registry: Registry, backend: str | None = None) -> Com
 
     Raises :class:`~skillcompose.errors.FSAValidationError` listing every problem.
     """
+    if not isinstance(fsa, FSA):
+        raise TypeError(f"compile_fsa takes an FSA, got {type(fsa).__name__}"
+                        + ("; load the file with load_fsa(path)"
+                           if isinstance(fsa, (str, os.PathLike)) else ""))
+    if not hasattr(registry, "resolve") or not hasattr(registry, "spec"):
+        raise TypeError(f"compile_fsa takes a Registry, got {type(registry).__name__}")
     fsa.validate(registry)
     be = backend or registry.backend
     impls = []
@@ -621,10 +631,10 @@ def run_fsa(
     propagate: bool = False,
 ) -> RunResult:
     """Compile (when needed) and run once: the one-call form of :meth:`CompiledFSA.run`."""
-    if isinstance(fsa, FSA):
+    if not isinstance(fsa, CompiledFSA):
         if registry is None:
             raise TypeError("run_fsa(fsa, registry, ...) needs the registry to find skills")
-        fsa = compile_fsa(fsa, registry, backend)
+        fsa = compile_fsa(fsa, registry, backend)  # says what else it could be
     return fsa.run(bb, rng, trace=trace, propagate=propagate)
 
 

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ import pytest
 from evolve import (
     PRESETS,
     EvolutionConfig,
+    EvolutionError,
     EvolutionResult,
     Genome,
     Job,
@@ -444,3 +446,34 @@ def test_the_command_line_sets_confirm_feedback() -> None:
     assert (noisy.islands, noisy.cache_refresh, noisy.p_param, noisy.confirm_trials,
             noisy.confirm_rate, noisy.confirm_candidates, noisy.confirm_feedback) == (
         4, 3, 0.3, 100, 1.0, 5, False)
+
+
+@pytest.mark.parametrize(("call", "error", "message"), [
+    (lambda t: evolve("examples.toy_task"), TypeError,  # type: ignore[arg-type]
+     "evolve() takes a Task, got str"),
+    (lambda t: evolve(t, PRESETS["robust"]), TypeError,  # type: ignore[arg-type]
+     "evolve(cfg=...) takes an EvolutionConfig, got dict; write EvolutionConfig("),
+    (lambda t: evolve(t, workers=-1), EvolutionError, "workers = -1: expected a whole number"),
+    (lambda t: evolve(t, workers=1.5), EvolutionError,  # type: ignore[arg-type]
+     "workers = 1.5: expected a whole number from 1 to 1024"),
+    (lambda t: evolve(t, workers=True), EvolutionError, "workers = True: expected"),
+    (lambda t: evolve(t, progress="yes"), TypeError,  # type: ignore[arg-type]
+     "evolve(progress=...) takes True, False or a stream, got str"),
+    (lambda t: evolve(t, on_generation=5), TypeError,  # type: ignore[arg-type]
+     "evolve(on_generation=...) takes a function, got int"),
+    (lambda t: evolve(t, out_dir=__file__), EvolutionError, "is not a folder; give a new"),
+    (lambda t: evolve(t, resume=__file__), EvolutionError, "is not a folder; give the run's"),
+])
+def test_arguments_of_the_wrong_kind_are_refused_before_any_work(
+    call: Any, error: type[Exception], message: str,
+) -> None:
+    with pytest.raises(error) as err:
+        call(load_task("examples.toy_task"))
+    assert message in str(err.value)
+
+
+def test_config_switches_must_be_true_or_false() -> None:
+    for name in ("cache", "parsimony", "common_random_numbers"):
+        with pytest.raises(EvolutionError, match=rf"{name} = 'no': expected true or false"):
+            wrong: dict[str, Any] = {name: "no"}
+            EvolutionConfig(**wrong)

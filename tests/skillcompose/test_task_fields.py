@@ -77,3 +77,19 @@ def _run(task: Task) -> list[float]:
 def test_a_blackboard_from_setup_is_taken_as_it_is(toy: Task) -> None:
     assert isinstance(toy.setup(np.random.default_rng(0)), Blackboard)
     assert _run(toy) == [_run(toy)[0]]
+
+
+def test_compiling_and_running_take_what_they_say(toy: Task) -> None:
+    from skillcompose import compile_fsa, run_fsa
+
+    with pytest.raises(TypeError, match="compile_fsa takes an FSA, got str; load the file with "
+                       "load_fsa"):
+        compile_fsa(ROOT_SOLUTION, toy.registry)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="compile_fsa takes a Registry, got NoneType"):
+        compile_fsa(load_fsa(ROOT_SOLUTION), None)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="compile_fsa takes an FSA, got str"):
+        run_fsa(ROOT_SOLUTION, toy.registry)  # type: ignore[arg-type]
+    compiled = toy.compile(load_fsa(ROOT_SOLUTION))
+    with pytest.raises(TypeError, match=r"a run takes a Blackboard \(or None\), got dict; "
+                       r"wrap it: Blackboard"):
+        compiled.run({"p_fail": 0.0})  # type: ignore[arg-type]
