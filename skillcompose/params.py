@@ -126,6 +126,10 @@ class ParamSpec:
                 if value == c and type(value) is type(c):
                     return c
             raise ParamError(bad)
+        if isinstance(value, numbers.Integral) and not isinstance(value, (bool, int)):
+            value = int(value)  # numpy's whole numbers: Python's
+        elif isinstance(value, numbers.Real) and not isinstance(value, (bool, int, float)):
+            value = float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ParamError(bad + _number_hint(value))
         if self.kind == "int" and isinstance(value, float):

@@ -289,8 +289,21 @@ def _keys(decl: KeyDecl, what: str, owner: str) -> tuple[frozenset[str], dict[st
         raise SkillDefinitionError(
             f"skill {owner}: {what}={decl!r} is a string; write {what}=({decl!r},)"
         )
+    if not isinstance(decl, Iterable):
+        raise SkillDefinitionError(
+            f"skill {owner}: {what}={decl!r}: write the blackboard keys as a tuple of names "
+            f"(or a mapping of name to type), e.g. {what}=('jug',)"
+        )
     types = {k: t for k, t in decl.items() if t is not None} if isinstance(decl, Mapping) \
         else {}
+    for k, t in types.items():
+        try:
+            isinstance(None, t)
+        except TypeError:
+            raise SkillDefinitionError(
+                f"skill {owner}: {what} key {k!r} has type {t!r}, which is not a type; "
+                "write a class such as float, or None for any"
+            ) from None
     keys = frozenset(decl)
     for k in keys:
         if not isinstance(k, str) or not k:
@@ -338,6 +351,12 @@ def _make_skill(
         func = obj
     else:
         raise SkillDefinitionError(f"@skill needs a function or a class, got {obj!r}")
+    if inspect.iscoroutinefunction(func) or inspect.isasyncgenfunction(func):
+        raise SkillDefinitionError(
+            f"skill {name or getattr(obj, '__name__', '?')}: an async function is not a skill "
+            "(nothing awaits it); write a plain function, or a generator that yields "
+            "'running' while it waits"
+        )
     skip = 1 if is_class else 0  # self
     skill_name = name or (obj.__name__ if is_class else
                           camel_name(getattr(obj, "__name__", "skill")))

@@ -200,3 +200,20 @@ def test_text_where_a_number_goes_gets_the_fix_for_its_form(
     with pytest.raises(FSAValidationError) as err:
         fsa.validate(registry)
     assert str(err.value).endswith(f"expected float in [0.05, 0.3] m {fix}"), str(err.value)
+
+
+def test_numpy_numbers_are_taken_as_python_ones(registry: Registry) -> None:
+    """A script that computes a parameter with numpy gets it through, as a Python number
+    (refused before as "(a number)")."""
+    import numpy as np
+
+    fsa = loads_fsa("format: 1\nstart: Move\nstates:\n  Move:\n    skill: MoveToObject\n"
+                    "    params: {approach: 0.1}\n"
+                    "    transitions: {success: success, failure: failure}\n")
+    for value in (np.float64(0.2), np.float32(0.25), np.int64(0) + 0.1):
+        fsa.with_params("Move", approach=value).validate(registry)
+    with pytest.raises(FSAValidationError, match=r"np.int64\(7\) is not valid; expected "
+                       r"float in \[0.05, 0.3\] m; set it between"):  # a number, out of range
+        fsa.with_params("Move", approach=np.int64(7)).validate(registry)
+    with pytest.raises(FSAValidationError, match=r"np.True_|True"):
+        fsa.with_params("Move", approach=np.bool_(True)).validate(registry)

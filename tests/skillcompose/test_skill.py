@@ -133,3 +133,24 @@ def test_local_names_in_the_bb_annotation_are_tolerated() -> None:
 
     assert local.spec.outcomes == ("success",)
     assert local(LocalBlackboard(), 0) == "success"
+
+
+def test_declarations_that_could_only_fail_at_run_time_are_refused() -> None:
+    async def waits(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+        return "success"
+
+    with pytest.raises(SkillDefinitionError, match="skill waits: an async function is not a "
+                       "skill"):
+        skill(waits)
+
+    def plain(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+        return "success"
+
+    with pytest.raises(SkillDefinitionError, match=r"skill Plain: writes key 'a' has type 5, "
+                       r"which is not a type"):
+        skill(writes={"a": 5})(plain)
+    with pytest.raises(SkillDefinitionError, match=r"skill Plain: reads=5: write the "
+                       r"blackboard keys as a tuple"):
+        skill(reads=5)(plain)  # type: ignore[call-overload]
+    assert skill(writes={"a": float, "b": None}, reads=("c",))(plain).spec.key_types == {
+        "a": float}
