@@ -23,6 +23,7 @@ from typing import Any
 from skillcompose import FSA, CompiledFSA, ParamSpec, Skill, State
 from skillcompose.errors import one_line
 from skillcompose.fsa import RESERVED_OUTCOMES
+from skillcompose.fsafile import MAX_STATES, MAX_VALUES
 from skillcompose.params import param_problems
 from skillcompose.task import Task
 
@@ -71,6 +72,11 @@ class SkillChoice:
         return out
 
 
+_FILE_RESERVE = 1_000
+"""Values of an exported FSA file kept for what is not its states (its header keys, its
+``meta``: the run's settings and results)."""
+
+
 class SkillSet:
     """The skills of a task that evolution may place, indexed, and the FSA's terminals."""
 
@@ -84,6 +90,13 @@ class SkillSet:
         self.index = {c.name: k for k, c in enumerate(self.choices)}
         if not self.choices:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
+        # the most nodes a genome may hold: what an FSA file holds and reads back (its
+        # states, and its values: a state's name, skill, parameters (a vector counts its
+        # items) and transitions, the rest of the file (its meta, the run's record) within
+        # _FILE_RESERVE), so that every FSA evolution exports loads again
+        per_node = max(6 + 2 * len(c.outcomes) + sum(
+            2 + (p.size or 0) for p in c.params) for c in self.choices)
+        self.max_nodes = max(1, min(MAX_STATES, (MAX_VALUES - _FILE_RESERVE) // per_node))
 
     @classmethod
     def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None) -> SkillSet:

@@ -87,7 +87,9 @@ def edge_for(
 def initialize(
     skills: SkillSet, rng: np.random.Generator, nodes: int, weight: float = 1.0
 ) -> Genome:
-    """Section 3.5: ``nodes`` random nodes with random edges, a start, then pruning."""
+    """Section 3.5: ``nodes`` random nodes with random edges, a start, then pruning (at
+    most ``skills.max_nodes``: what an FSA file holds)."""
+    nodes = min(nodes, skills.max_nodes)
     g = Genome({}, 0, 0)
     choices = [int(rng.integers(len(skills))) for _ in range(nodes)]
     for k in choices:
@@ -135,6 +137,8 @@ def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: floa
     """Figure 3: a new random node takes over one incoming edge of a node that has two or
     more; when no node has, it takes over an edge into a terminal outcome. Returns whether
     a node was added."""
+    if len(g.nodes) >= skills.max_nodes:  # more would not fit an FSA file
+        return False
     inc = g.incoming()
     crowded = [k for k, e in inc.items() if len(e) >= 2]
     if crowded:

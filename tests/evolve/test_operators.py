@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -339,3 +341,41 @@ def test_genome_compiled_programs_also_run_tick_by_tick(toy: Task, toy_skills: S
             a = compiled.run(toy.setup(rng_a), rng_a)
             b = compiled.start(toy.setup(rng_b), rng_b).run()
             assert (a.outcome, a.steps, a.last_state) == (b.outcome, b.steps, b.last_state)
+
+
+def test_genomes_never_outgrow_what_an_fsa_file_holds() -> None:
+    """An FSA file holds at most MAX_STATES states and MAX_VALUES values: initialisation and
+    the add mutation stop at ``SkillSet.max_nodes``."""
+    from skillcompose.fsafile import MAX_STATES
+    from skillcompose.task import load_task
+
+    skills = SkillSet.from_task(load_task("examples.toy_task", p_fail=0.1))
+    assert skills.max_nodes == MAX_STATES  # small skills: the states bound it
+    push = SkillSet.from_task(load_task("examples.move_to_push"))
+    assert push.max_nodes < MAX_STATES  # a network's weights: the values bound it
+    rng = np.random.default_rng(0)
+    small = SkillSet(skills.choices, skills.terminals)
+    small.max_nodes = 6
+    assert len(initialize(small, rng, 50).nodes) <= 6
+    g = initialize(small, rng, 6)
+    while add_node(g, small, rng):
+        pass
+    assert len(g.nodes) <= 6
+    small.max_nodes = len(g.nodes)
+    before = g.copy()
+    assert not add_node(g, small, rng) and g.key() == before.key()
+
+
+@pytest.mark.slow
+def test_a_run_of_huge_genomes_exports_a_file_that_loads(tmp_path: Path) -> None:
+    """A run with 1500 initial nodes and p_add 1 exported a best.yaml of 969 states, which
+    load_fsa refused."""
+    from evolve import EvolutionConfig, evolve
+    from skillcompose import load_fsa
+    from skillcompose.task import load_task
+
+    task = load_task("examples.toy_task", p_fail=0.1)
+    cfg = EvolutionConfig(population=2, generations=1, initial_nodes=1500, p_add=1.0)
+    result = evolve(task, cfg, seed=1, out_dir=tmp_path / "run", check_trials=0,
+                    simplify_result=False)
+    assert len(load_fsa(tmp_path / "run" / "best.yaml").states) == len(result.best_fsa.states)
