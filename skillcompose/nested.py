@@ -51,7 +51,13 @@ class FSASkill(Skill):
         """The nested FSA compiled for ``backend`` (once per backend)."""
         be = backend or self.registry.backend
         if be not in self._compiled:
-            self._compiled[be] = compile_fsa(self.fsa, self.registry, be)
+            try:
+                self._compiled[be] = compile_fsa(self.fsa, self.registry, be)
+            except RecursionError:  # a skill swapped in (replace=True) closed a circle
+                raise RegistryError(
+                    f"FSA skill {self.name}: its nested FSAs run one another in a circle: an "
+                    "FSA cannot contain itself; replace the skill that closes the circle"
+                ) from None
         return self._compiled[be]
 
     def starter(self, backend: str | None = None) -> Starter:

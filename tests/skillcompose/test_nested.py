@@ -162,3 +162,16 @@ def test_fsas_nested_past_the_limit_are_refused_and_the_limit_runs() -> None:
     with pytest.raises(RegistryError, match=rf"the FSA Top nests FSAs {MAX_NESTING + 1} deep, "
                        rf"more than the {MAX_NESTING} a run can hold"):
         reg.add_fsa(top)
+
+
+def test_a_circle_closed_by_replacing_a_skill_is_one_line_not_a_recursion() -> None:
+    from skillcompose import fsa_skill
+
+    reg = Registry.from_modules([demo_skills])
+    reg.add_fsa(_using("Recognise", "Sub").replace(states={"S_1": State(
+        "Recognise", {}, {"success": "success"})}))
+    reg.add_fsa(_using("Sub", "Top"))
+    reg.add(fsa_skill(_using("Top", "Sub"), reg), replace=True)  # Sub now runs Top
+    with pytest.raises(RegistryError, match=r"FSA skill \w+: its nested FSAs run one another "
+                       r"in a circle: an FSA cannot contain itself"):
+        compile_fsa(_using("Top", "Outer"), reg).run(Blackboard(), 0)
