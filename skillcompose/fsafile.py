@@ -148,6 +148,10 @@ def load_fsa(path: str | os.PathLike[str]) -> FSA:
 
 def loads_fsa(text: str, path: str | None = None) -> FSA:
     """Parse FSA text; ``path`` is used in error messages only."""
+    if not isinstance(text, str):
+        raise TypeError(f"loads_fsa takes the file's text (str), got {type(text).__name__}"
+                        + ("; decode it: data.decode('utf-8')" if isinstance(
+                            text, (bytes, bytearray)) else ""))
     return _Reader(text, path).read()
 
 

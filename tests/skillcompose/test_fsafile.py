@@ -332,3 +332,9 @@ def test_a_loaded_fsa_holds_plain_data_only() -> None:
     text = dumps_fsa(fsa)
     assert dumps_fsa(pickle.loads(pickle.dumps(fsa))) == text  # a copy parses the text again
     assert "  Look:                     # store where the jug and the glass are" in text
+
+
+def test_loads_fsa_takes_text() -> None:
+    with pytest.raises(TypeError, match=r"loads_fsa takes the file's text \(str\), got bytes; "
+                       r"decode it"):
+        loads_fsa(b"format: 1\n")  # type: ignore[arg-type]
