@@ -592,7 +592,7 @@ class _Reader:
         if "format" in top:
             fnode = top["format"][1]
             fv = self.plain(fnode)
-            if fv != FORMAT_VERSION or isinstance(fv, bool):
+            if fv != FORMAT_VERSION or not isinstance(fv, int) or isinstance(fv, bool):
                 self.fail(fnode, f"format {fv!r} is not supported; this version of "
                           f"skillcompose reads format {FORMAT_VERSION}", key="format",
                           fix=f"set `format: {FORMAT_VERSION}`")

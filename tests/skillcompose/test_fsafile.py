@@ -180,6 +180,9 @@ _ONE = "format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    transitions:\n    
          "bad.yaml:5:3: states: key 'A' appears twice (first on line 4)"),
         ("format: 1\nstart: A\nstates:\n  A:\n    skill: X\n",
          "bad.yaml:5:5: state A: missing key 'transitions'"),
+        ("format: 1.0\nstart: A\nstates: {A: {skill: X, transitions: {ok: success}}}\n",
+         "bad.yaml:1:9: format 1.0 is not supported; this version of skillcompose reads "
+         "format 1; set `format: 1`"),
         # slips made by hand in the YAML itself, each with its own fix
         (_ONE + "---\nformat: 1\n", "bad.yaml:8:1: not valid YAML: but found another "
          "document; an FSA file holds one document: remove the `---` line (or the second FSA)"),
