@@ -1016,6 +1016,8 @@ def _check_arguments(
         if path is not None and not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"evolve({name}=...) takes a folder's path, got "
                             f"{type(path).__name__}")
+        if path is not None and not os.fspath(path):
+            raise EvolutionError(f"evolve({name}='') names no folder; give the run's folder")
         if path is not None and Path(path).exists() and not Path(path).is_dir():
             raise EvolutionError(f"{name}={os.fspath(path)!r} is not a folder; give the run's "
                                  "folder" if name == "resume" else

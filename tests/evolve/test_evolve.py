@@ -463,6 +463,7 @@ def test_the_command_line_sets_confirm_feedback() -> None:
      "evolve(on_generation=...) takes a function, got int"),
     (lambda t: evolve(t, out_dir=__file__), EvolutionError, "is not a folder; give a new"),
     (lambda t: evolve(t, resume=__file__), EvolutionError, "is not a folder; give the run's"),
+    (lambda t: evolve(t, resume=""), EvolutionError, "evolve(resume='') names no folder"),
 ])
 def test_arguments_of_the_wrong_kind_are_refused_before_any_work(
     call: Any, error: type[Exception], message: str,
