@@ -1165,6 +1165,15 @@ def _evolve(
     best_genome, best_f, _ = run.best
     evolved = run.best_fsa()
     best = evolved
+    lost = run.faults().lost
+    if lost and (simplify_result or check_used > 0):
+        # simplification and the fresh check run the task here, in the evolving process,
+        # which a task that kills its worker would end without a word (and again on resume)
+        print(f"warning: {lost} evaluation(s) of this run killed the worker process running "
+              f"them (os._exit in task {task.name} or a skill, a crash in C code): "
+              "simplification and the fresh-episode check, which would run the task in this "
+              "process, are skipped; best.yaml is the evolved FSA", file=sys.stderr)
+        simplify_result, check_used = False, 0
     if simplify_result:
         best = simplify(task, evolved, seed=seed, trials=simplify_used,
                         time_limit=cfg.eval_time_limit)

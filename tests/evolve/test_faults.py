@@ -543,3 +543,30 @@ def test_the_fresh_check_warning_suggests_only_what_the_run_did_not_use() -> Non
     assert "a larger --confirm than 20" in robust and "--trials" in robust
     strict = _hold_hint(EvolutionConfig(**{**PRESETS["push"], "confirm_trials": 200}), task)
     assert strict.startswith("a stricter task target")
+
+
+def test_a_run_whose_task_sometimes_kills_its_worker_finishes_without_the_end_in_process(
+    tmp_path: Path,
+) -> None:
+    """Simplification and the fresh check run the task in the evolving process, which such a
+    task ended without a word (status 3, and again on every resume); they are skipped, said
+    in one line. In a process of its own: a regression would end this one."""
+    import subprocess
+    import sys
+
+    d = tmp_path / "run"
+    args = ["evolve", FAULTY, "--set", "fault=crash", "--set", "p_fault=0.5", "--population",
+            "12", "--generations", "3", "--initial-nodes", "4", "--workers", "2", "--quiet",
+            "--out", str(d)]
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys; from skillcompose.cli import main; "
+         "sys.exit(main(sys.argv[1:]))", *args],
+        capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode in (0, 1), done.stderr[-2000:]
+    assert "killed the worker process running them" in done.stderr
+    assert "simplification and the fresh-episode check, which would run the task in this " \
+        "process, are skipped" in done.stderr
+    assert (d / "best.yaml").is_file() and (d / "best_evolved.yaml").is_file()
+    lost = sum(json.loads(line)["faults"]["lost"]
+               for line in (d / "history.jsonl").read_text().splitlines())
+    assert lost > 0
