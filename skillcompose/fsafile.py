@@ -373,7 +373,11 @@ def _check_directives(text: str) -> None:
 
 class _Reader:
     def __init__(self, text: str, path: str | None) -> None:
-        self.text = text
+        # YAML reads "\r\n" and "\r" as line breaks; the round trip's writer knows "\n"
+        # only (it dropped the blank lines of a "\r\n" file): one kind of line end for both,
+        # the file's own kept for writing it again
+        self.newline = "\r\n" if text.count("\r\n") * 2 > text.count("\n") else "\n"
+        self.text = text.replace("\r\n", "\n").replace("\r", "\n")
         self.path = path
         self.problems: list[Problem] = []
         self.positions: dict[tuple[str, ...], tuple[int, int]] = {}
@@ -625,7 +629,8 @@ class _Reader:
                 meta = self.plain(node)
         states = self.read_states(*top["states"]) if "states" in top else {}
         self.raise_if_problems()
-        source = FileOrigin(self.path, dict(self.positions), self.text, root=root)
+        source = FileOrigin(self.path, dict(self.positions), self.text, root=root,
+                            newline=self.newline)
         try:
             return FSA(states, start, terminals, step_limit, name, meta, source)
         except FSAValidationError as exc:
@@ -729,11 +734,7 @@ def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None 
     if isinstance(doc, CommentedMap) and isinstance(origin, FileOrigin):
         _sync_document(doc, fsa, registry, origin.renames)
         text = _dump(doc)
-        # a file written with Windows line ends keeps them (its comments carry their
-        # ends through the round trip, the rest would be "\n": one convention, theirs)
-        if origin.text.count("\r\n") * 2 > origin.text.count("\n"):
-            text = text.replace("\n", "\r\n")
-        return text
+        return text.replace("\n", "\r\n") if origin.newline == "\r\n" else text
     return _dump(_new_document(fsa, registry, header))
 
 
@@ -763,6 +764,7 @@ class FileOrigin(Source):
     text: str = ""
     renames: Mapping[str, str] = field(default_factory=dict)
     root: Node | None = field(default=None, compare=False, repr=False)
+    newline: str = field(default="\n", compare=False)  # the file's line end, when written
 
     def renamed(self, old: str, new: str) -> FileOrigin:
         renames = {k: (new if v == old else v) for k, v in self.renames.items()}
@@ -786,8 +788,7 @@ def _dump(doc: Any) -> str:
     yaml.width = 100
     buf = io.StringIO()
     yaml.dump(doc, buf)
-    # comments read from a file with "\r\n" or "\r" line ends keep them: one "\n" for all
-    return buf.getvalue().replace("\r\n", "\n").replace("\r", "\n")
+    return buf.getvalue()
 
 
 def _yaml_fix(what: str, text: str, mark: Any) -> str:

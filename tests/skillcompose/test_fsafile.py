@@ -95,12 +95,17 @@ def test_saving_an_unchanged_file_keeps_it_byte_for_byte(tmp_path: Path) -> None
 def test_an_edited_file_keeps_one_kind_of_line_end(tmp_path: Path, ends: str, kept: str) -> None:
     """Windows line ends stay Windows line ends; lone carriage returns become "\\n"; never
     a mix (the comments used to keep theirs and the rest take "\\n")."""
+    spaced = HAND_WRITTEN.replace("states:\n", "\nstates:\n")  # a blank line too
     path = tmp_path / "pour.fsa.yaml"
-    path.write_bytes(HAND_WRITTEN.replace("\n", ends).encode())
+    path.write_bytes(spaced.replace("\n", ends).encode())
     save_fsa(load_fsa(path).with_params("Move_2", approach=0.15), path)
     data = path.read_bytes()
-    lines = HAND_WRITTEN.count("\n")
+    lines = spaced.count("\n")
     assert data.count(kept.encode()) == lines and data.count(b"\r") == kept.count("\r") * lines
+    plain = tmp_path / "plain.fsa.yaml"  # the same edit of the "\n" file: the same text
+    plain.write_text(spaced)
+    save_fsa(load_fsa(plain).with_params("Move_2", approach=0.15), plain)
+    assert data.decode().replace("\r\n", "\n") == plain.read_text()
     assert b"approach: 0.15" in data and load_fsa(path).states["Move_2"].params["approach"] == 0.15
 
 
