@@ -95,7 +95,8 @@ def test_saving_an_unchanged_file_keeps_it_byte_for_byte(tmp_path: Path) -> None
 def test_an_edited_file_keeps_one_kind_of_line_end(tmp_path: Path, ends: str, kept: str) -> None:
     """Windows line ends stay Windows line ends; lone carriage returns become "\\n"; never
     a mix (the comments used to keep theirs and the rest take "\\n")."""
-    spaced = HAND_WRITTEN.replace("states:\n", "\nstates:\n")  # a blank line too
+    spaced = HAND_WRITTEN.replace("step_limit: 20\n", "step_limit: 20\n\n").replace(
+        "  Move_2:\n", "\n  Move_2:\n")  # blank lines too
     path = tmp_path / "pour.fsa.yaml"
     path.write_bytes(spaced.replace("\n", ends).encode())
     save_fsa(load_fsa(path).with_params("Move_2", approach=0.15), path)
