@@ -409,9 +409,11 @@ def _number_hint(value: Any) -> str:
     if not isinstance(value, str):
         return " (a number)"
     text = value.strip()
-    if "\u2212" in text:
-        return " (a number): replace the sign \u2212 (U+2212) with the ASCII minus -"
-    head = re.match(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", text)
+    for sign in ("\u2212", "\u2013"):  # minus sign, en dash
+        if text.startswith(sign):
+            return (f" (a number): replace the sign {sign} (U+{ord(sign):04X}) with the ASCII "
+                    "minus -")
+    head = re.match(r"[-+]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][-+]?[0-9]+)?", text)
     if head is None:
         return " (a number)"
     rest = text[head.end():]
@@ -419,5 +421,9 @@ def _number_hint(value: Any) -> str:
         return " (a number, not text): remove the quotes"
     if rest.startswith("#"):
         return " (a number): put a space before # to start a comment"
-    return (f" (a number): write {head.group(0)} alone, without {clip(repr(rest.strip()), 30)}"
-            " (the unit is the skill's)")
+    if re.fullmatch(r",[0-9]+", rest) and "." not in head.group(0):
+        return f" (a number): write the decimal point as a point: {head.group(0)}.{rest[1:]}"
+    if re.match(r"\s*[^\W\d_]|\s*[%\u00b0]", rest):  # a unit: letters, % or a degree sign
+        return (f" (a number): write {head.group(0)} alone, without "
+                f"{clip(repr(rest.strip()), 30)} (the unit is the skill's)")
+    return " (a number)"

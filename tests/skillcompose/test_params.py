@@ -190,6 +190,12 @@ def test_whole_numbers_within_the_limit_go_through_the_genes_exactly(low: int, h
     ("0.6# m", "(a number): put a space before # to start a comment"),
     ("\u22120.6", "(a number): replace the sign \u2212 (U+2212) with the ASCII minus -"),
     ("near", "(a number)"),
+    ("0,5", "(a number): write the decimal point as a point: 0.5"),
+    ("1/2", "(a number)"),
+    ("1.2.3", "(a number)"),
+    ("\u20130.1", "(a number): replace the sign \u2013 (U+2013) with the ASCII minus -"),
+    ("\uff10.1", "(a number)"),  # full-width digits: not ours to read
+    ("5 %", "(a number): write 5 alone, without '%' (the unit is the skill's)"),
 ])
 def test_text_where_a_number_goes_gets_the_fix_for_its_form(
     registry: Registry, value: str, fix: str,
