@@ -112,7 +112,9 @@ class Registry:
         for t in targets:
             if not (isinstance(t, str) and t in files):
                 added += self.load_module(t)
-        machines = {f: load_fsa(f) for f in dict.fromkeys(files)}
+        by_place = {Path(f).resolve(): f for f in reversed(files)}  # one file, one load,
+        machines = {f: load_fsa(f) for f in dict.fromkeys(  # however it was named
+            by_place[Path(f).resolve()] for f in files)}
         for m in machines.values():
             self._check_free(m, m.name)
         defines = {m.name: f for f, m in reversed(machines.items()) if m.name}
@@ -121,7 +123,7 @@ class Registry:
         try:
             order = list(graphlib.TopologicalSorter(needs).static_order())
         except graphlib.CycleError as exc:
-            circle = [str(f) for f in exc.args[1]]
+            circle = [str(f) for f in reversed(exc.args[1])]  # each uses the next
             if len(set(circle)) == 1:
                 raise RegistryError(
                     f"{one_line(circle[0])}: the FSA {machines[circle[0]].name} uses itself as "

@@ -1,5 +1,8 @@
 from __future__ import annotations
 
+import itertools
+import os
+import re
 from pathlib import Path
 from types import ModuleType
 
@@ -109,6 +112,9 @@ def test_nested_fsa_files_load_in_the_order_their_nesting_needs(tmp_path: Path) 
     for order in orders:
         reg = Registry.from_modules(order)
         assert {"MoveToReach", "Fetch"} <= set(reg)
+    again = os.path.relpath(reach)  # one file named two ways is loaded once
+    assert {"MoveToReach", "Fetch"} <= set(Registry.from_modules([demo_skills, reach, again,
+                                                                  fetch]))
 
 
 def test_nested_fsa_files_in_a_circle_or_using_themselves_are_one_line(tmp_path: Path) -> None:
@@ -119,7 +125,9 @@ def test_nested_fsa_files_in_a_circle_or_using_themselves_are_one_line(tmp_path:
     with pytest.raises(RegistryError) as err:
         Registry.from_modules([demo_skills, fetch, str(loop), str(circle)])
     assert "use each other in a circle: an FSA cannot contain itself" in str(err.value)
-    assert "(Fetch)" in str(err.value) and "(Loop)" in str(err.value)
+    names = re.findall(r"\((\w+)\)", str(err.value))  # each uses the next
+    uses = {"Fetch": "MoveToReach", "MoveToReach": "Loop", "Loop": "Fetch"}
+    assert len(names) == 4 and all(uses[a] == b for a, b in itertools.pairwise(names))
     itself = save_fsa(_using("MoveToReach", "MoveToReach"), tmp_path / "self.yaml")
     with pytest.raises(RegistryError, match=r"self.yaml: the FSA MoveToReach uses itself"):
         Registry.from_modules([demo_skills, str(itself.path)])
