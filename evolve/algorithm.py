@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import os
 import shlex
 import statistics
@@ -914,6 +915,7 @@ def evolve(
       terminal, a line every 5 s otherwise; both show the faults so far.
     """
     _check_arguments(task, cfg, workers, progress, on_generation, resume, out_dir)
+    workers = None if workers is None else int(workers)  # numpy's: Python's, for run.json
     if backend not in BACKENDS:
         raise EvolutionError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     rundir: RunDir | None = None
@@ -1002,11 +1004,13 @@ def _check_arguments(
     if cfg is not None and not isinstance(cfg, EvolutionConfig):
         raise TypeError(f"evolve(cfg=...) takes an EvolutionConfig, got {type(cfg).__name__}"
                         "; write EvolutionConfig(**PRESETS['robust']), say")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                or not 1 <= workers <= MAX_WORKERS):
+    if workers is not None and (isinstance(workers, bool) or
+                                not isinstance(workers, numbers.Integral) or
+                                not 1 <= int(workers) <= MAX_WORKERS):
         raise EvolutionError(f"workers = {workers!r}: expected a whole number from 1 to "
                              f"{MAX_WORKERS} (or None: every core)")
-    if not isinstance(progress, bool) and not callable(getattr(progress, "write", None)):
+    if progress is not None and not isinstance(progress, (bool, int)) and \
+            not callable(getattr(progress, "write", None)):
         raise TypeError(f"evolve(progress=...) takes True, False or a stream, got "
                         f"{type(progress).__name__}")
     if on_generation is not None and not callable(on_generation):
@@ -1018,6 +1022,9 @@ def _check_arguments(
                             f"{type(path).__name__}")
         if path is not None and not os.fspath(path):
             raise EvolutionError(f"evolve({name}='') names no folder; give the run's folder")
+        if path is not None and Path(path).is_symlink() and not Path(path).exists():
+            raise EvolutionError(f"{name}={os.fspath(path)!r} is a link to nothing; give a "
+                                 "folder")
         if path is not None and Path(path).exists() and not Path(path).is_dir():
             raise EvolutionError(f"{name}={os.fspath(path)!r} is not a folder; give the run's "
                                  "folder" if name == "resume" else

@@ -362,7 +362,7 @@ class Genome:
             )
             params = c.encode(values)
             for o in st.transitions:  # a typo'd outcome would vanish from the evolved file
-                if o not in c.outcomes and not (o == "timeout" and st.time_limit is not None):
+                if o not in c.outcomes:
                     problems.append(
                         f"{src}{_line(fsa, 'states', sname, 'transitions', o)}: state {sname}: "
                         f"{o!r} is not an outcome of skill {c.name} (its outcomes are "

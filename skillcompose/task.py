@@ -113,14 +113,25 @@ def _blackboard(bb: Any) -> Blackboard:
 
 
 def _number(value: Any, task: str) -> float:
-    """What the fitness of ``task`` gave back, which must be a number and not NaN."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"the fitness of task {task} returned {clip(repr(value), 40)}, not a "
-                        "number; return a float")
-    if math.isnan(value):
+    """What the fitness of ``task`` gave back, which must be a number (anything ``float()``
+    takes but text and truth values: numpy scalars and 0-d arrays, ``Decimal``) and not
+    NaN."""
+    shown = clip(repr(value), 40)
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise TypeError(f"the fitness of task {task} returned {shown}, not a number; return "
+                        "a float")
+    try:
+        f = float(value)
+    except OverflowError:
+        raise ValueError(f"the fitness of task {task} returned {shown}, beyond ±1.8e308; "
+                         "return a smaller number (inf or -inf for the worst)") from None
+    except (TypeError, ValueError):
+        raise TypeError(f"the fitness of task {task} returned {shown}, not a number; return "
+                        "a float") from None
+    if math.isnan(f):
         raise ValueError(f"the fitness of task {task} returned NaN; return a number (inf or "
                          "-inf for the worst)")
-    return float(value)
+    return f
 
 
 @dataclass(frozen=True)
@@ -184,6 +195,8 @@ class Task:
                                 f"number from 1 to {most:,}")
             object.__setattr__(self, field_, int(value))
         for field_ in ("minimize", "deterministic"):
+            if isinstance(getattr(self, field_), np.bool_):  # numpy's: Python's
+                object.__setattr__(self, field_, bool(getattr(self, field_)))
             if not isinstance(getattr(self, field_), bool):
                 raise TaskError(f"{me}: {field_} = {clip(repr(getattr(self, field_)), 40)}: "
                                 "expected True or False")
@@ -200,7 +213,7 @@ class Task:
                                 f"of skill names, e.g. {field_}=('Carry',)")
             object.__setattr__(self, field_, tuple(value))
         if isinstance(self.target, bool) or not isinstance(self.target, numbers.Real) or \
-                math.isnan(self.target):
+                self.target != self.target:  # NaN (and no float() of a huge whole number)
             raise TaskError(f"{me}: target = {clip(repr(self.target), 40)}: expected a number")
         if not callable(self.setup) or not callable(self.fitness):
             which = "setup" if not callable(self.setup) else "fitness"

@@ -473,6 +473,18 @@ def test_arguments_of_the_wrong_kind_are_refused_before_any_work(
     assert message in str(err.value)
 
 
+def test_arguments_of_other_right_kinds_are_taken(tmp_path: Path) -> None:
+    task = load_task("examples.toy_task")
+    cfg = EvolutionConfig(population=6, generations=1, initial_nodes=4)
+    for kind in ({"progress": None}, {"workers": np.int64(2), "backend": "process"}):
+        result = evolve(task, cfg, check_trials=0, simplify_result=False,
+                        out_dir=tmp_path / str(len(list(tmp_path.iterdir()))), **kind)
+        assert result.generations == 1
+    (tmp_path / "gone").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(EvolutionError, match="is a link to nothing; give a folder"):
+        evolve(task, cfg, out_dir=tmp_path / "gone")
+
+
 def test_config_switches_must_be_true_or_false() -> None:
     for name in ("cache", "parsimony", "common_random_numbers"):
         with pytest.raises(EvolutionError, match=rf"{name} = 'no': expected true or false"):

@@ -201,6 +201,22 @@ def test_a_seed_fsas_transition_on_an_outcome_its_skill_lacks_is_refused(
         "rename it to one of ['success', 'failure']")
 
 
+def test_a_seed_fsas_timeout_transition_is_refused_as_validate_refuses_it(
+    toy_skills: SkillSet,
+) -> None:
+    """validate accepts ``timeout:`` only for a skill that declares it; the seed check
+    took it for any state with a time limit, and the edge vanished from the evolved file."""
+    from evolve import SeedFSAError
+    from skillcompose import loads_fsa
+
+    text = ("format: 1\nname: t\nstart: A\nterminals: [success, failure]\nstates:\n"
+            "  A:\n    skill: PickBlock\n    time_limit: 5\n    transitions:\n"
+            "      success: success\n      failure: failure\n      timeout: failure\n")
+    with pytest.raises(SeedFSAError, match=r"state A: 'timeout' is not an outcome of skill "
+                       r"PickBlock"):
+        Genome.from_fsa(loads_fsa(text, "t.yaml"), toy_skills)
+
+
 def test_seed_fsa_errors_keep_one_problem_per_line(toy_skills: SkillSet) -> None:
     from evolve import SeedFSAError
     from skillcompose import loads_fsa

@@ -74,6 +74,28 @@ def _run(task: Task) -> list[float]:
     return [trial.fitness for trial in task.guarded().each_trial(compiled, 0, 1)]
 
 
+@pytest.mark.parametrize("value", [np.float64(0.25), np.array(0.25), 0.25, 1, np.int64(2)])
+def test_a_fitness_float_takes_is_a_number(toy: Task, value: Any) -> None:
+    """numpy scalars and 0-d arrays (what np.where gives) are numbers, as float() says."""
+    from decimal import Decimal
+
+    for v in (value, Decimal("0.25")):
+        def fitness(outcome: str, bb: Blackboard, steps: int, v: Any = v) -> Any:
+            return v
+
+        assert _run(dataclasses.replace(toy, fitness=fitness)) == [float(v)]
+
+
+def test_a_huge_fitness_and_numpy_truth_values() -> None:
+    task = load_task("examples.toy_task", p_fail=0.0)
+    huge = dataclasses.replace(task, fitness=lambda outcome, bb, steps: 10**400)
+    with pytest.raises(TaskError, match=r"returned 1000.*, beyond ±1.8e308"):
+        _run(huge)
+    numpy_false: Any = np.bool_(False)
+    assert dataclasses.replace(task, minimize=numpy_false).minimize is False
+    assert dataclasses.replace(task, target=10**400).target == 10**400
+
+
 def test_a_blackboard_from_setup_is_taken_as_it_is(toy: Task) -> None:
     assert isinstance(toy.setup(np.random.default_rng(0)), Blackboard)
     assert _run(toy) == [_run(toy)[0]]
