@@ -792,18 +792,23 @@ def _dump(doc: Any) -> str:
 
 
 def _yaml_fix(what: str, text: str, mark: Any) -> str:
-    """The fix for a YAML syntax error, for the slips people make by hand."""
-    line = ""  # the line of the error and the one before it: YAML often sees a slip late
-    if mark is not None and getattr(mark, "line", None) is not None:
-        lines = text.splitlines()
-        line = "\n".join(lines[max(0, mark.line - 1):mark.line + 1])
+    """The fix for a YAML syntax error, for the slips people make by hand; the general advice
+    when the slip is not one of them."""
+    near: list[str] = []  # the error's line and the one before it (YAML often sees a slip
+    if mark is not None and getattr(mark, "line", None) is not None:  # a line late), bare:
+        for line in text.splitlines()[max(0, mark.line - 1):mark.line + 1]:
+            bare = re.sub(r"'[^']*'|\"[^\"]*\"", "''", line)  # no quoted text, no comment
+            near.append(re.split(r"(?:^|\s)#", bare, maxsplit=1)[0])
     if "another document" in what or "document start" in what:
-        return "an FSA file holds one document: remove the `---` line (or the second FSA)"
+        if re.search(r"^---\s*$", text, re.M):
+            return "an FSA file holds one document: remove the `---` line (or the second FSA)"
+        return "an FSA file is one mapping of `key: value` lines; check the lines from here"
     if "'\\t'" in what or "\t" in what:
         return "replace the tab with spaces"
-    if "\u00a0" in line:
+    if any("\u00a0" in line for line in near):
         return "a non-breaking space (U+00A0) is near here: replace it with a plain space"
-    if "mapping values are not allowed" in what and re.search(r"^[^#]*\w:[^\s/]", line, re.M):
+    if "mapping values are not allowed" in what and any(
+            re.match(r"\s*(?:-\s+)?[\w.-]+:[^\s:]", line) for line in near):
         return "put a space after each ':' that ends a key (`success: Grasp`)"
     return "check indentation, colons and quotes near this line"
 

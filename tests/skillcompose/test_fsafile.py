@@ -203,6 +203,13 @@ _ONE = "format: 1\nstart: A\nstates:\n  A:\n    skill: X\n    transitions:\n    
         (_ONE.replace("skill: X", "skill:\u00a0X"), "bad.yaml:6:16: not valid YAML: mapping "
          "values are not allowed here; a non-breaking space (U+00A0) is near here: replace it "
          "with a plain space"),
+        # ... and no such fix where the slip is another one
+        (_ONE.replace("start: A", "note: 12:30 start: now\nstart: A"), "bad.yaml:2:18: not "
+         "valid YAML: mapping values are not allowed here; check indentation, colons and "
+         "quotes near this line"),
+        (_ONE.replace("start: A", "name: s  # the\u00a0name\nx: Find y: z\nstart: A"),
+         "bad.yaml:3:10: not valid YAML: mapping values are not allowed here; check "
+         "indentation, colons and quotes near this line"),
         ("format: 1\nstart: A\nterminals: [success, failure, success]\n"
          "states: {A: {skill: X, transitions: {ok: success}}}\n",
          "bad.yaml:3:1: terminal outcome 'success' is listed twice; keep one"),
