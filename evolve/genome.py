@@ -399,10 +399,7 @@ def _decode_genome(data: tuple[Any, ...], origin: Mapping[str, Any]) -> Genome:
 
 
 def _line(fsa: FSA, *keys: str) -> str:
-    if fsa.source is None:
-        return ""
-    line, col = fsa.source.where(*keys)
-    return "" if line is None else f":{line}" if col is None else f":{line}:{col}"
+    return "" if fsa.source is None else fsa.source.at(*keys)
 
 
 class GenomeCompiler:

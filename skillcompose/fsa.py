@@ -79,6 +79,12 @@ class Source:
                 return pos
         return None, None
 
+    def at(self, *keys: str) -> str:
+        """``:line:column`` of the key path ``keys`` (as :meth:`where`), to follow a file's
+        name in a message; empty when unknown."""
+        line, col = self.where(*keys)
+        return "" if line is None else f":{line}" if col is None else f":{line}:{col}"
+
     def renamed(self, old: str, new: str) -> Source:
         """This source once state ``old`` is called ``new`` (a writer's handle notes it)."""
         return self

@@ -110,8 +110,7 @@ def fsa_skill(
     skill_name = name or fsa.name
     if not skill_name or not skill_name.isidentifier():
         if fsa.path and name is None:  # a file: say where
-            line, col = fsa.source.where("name") if fsa.source is not None else (None, None)
-            at = "" if line is None or not fsa.name else f":{line}:{col}"
+            at = fsa.source.at("name") if fsa.source is not None and fsa.name else ""
             raise RegistryError(
                 f"{one_line(fsa.path)}{at}: an FSA file used as a skill needs a `name:` that "
                 f"is an identifier (the skill's name, e.g. FetchJug), got {skill_name!r}"

@@ -470,8 +470,7 @@ def make_move_to_reach(
     ``failure``."""
     machine = load_fsa(path)
     if sorted(machine.terminals) != ["failure", "success"]:  # else renamed ends go unseen
-        line, col = machine.source.where("terminals") if machine.source else (None, None)
-        at = "" if line is None else f":{line}:{col}"
+        at = machine.source.at("terminals") if machine.source is not None else ""
         raise RegistryError(
             f"{path}{at}: MoveToReach ends in success or failure (what stacking reads of "
             f"it), but this FSA's terminals are {list(machine.terminals)}; set `terminals: "
