@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from evolve import (
+from skillcompose.evolve import (
     PRESETS,
     EvolutionConfig,
     Job,
@@ -153,7 +153,7 @@ def _pool_options(**options: Any) -> Iterator[None]:
         return
     from unittest import mock
 
-    import evolve.evaluation as evaluation
+    import skillcompose.evolve.evaluation as evaluation
 
     made = evaluation.ProcessEvaluator
     with mock.patch.object(evaluation, "ProcessEvaluator",
@@ -168,7 +168,7 @@ _IN_PRIVATE_NET = "SKILLCOMPOSE_BENCH_PRIVATE_NET"
 def ray_address(nodes: int) -> Iterator[None]:
     """A local Ray cluster of ``nodes`` nodes of one CPU each, started here, named by
     ``RAY_ADDRESS`` (so ``backend="ray"`` connects to it) and stopped on leaving."""
-    from evolve.ray_local import local_cluster
+    from skillcompose.evolve.ray_local import local_cluster
 
     with local_cluster(nodes) as cluster:
         os.environ.update(cluster.env)  # before Ray is imported: it reads them then
@@ -200,7 +200,7 @@ def _whole_generations() -> Iterator[None]:
     backend did before it streamed), to compare in the same run."""
     from unittest import mock
 
-    import evolve.algorithm as algorithm
+    import skillcompose.evolve.algorithm as algorithm
 
     made = algorithm.make_evaluator
 
@@ -291,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
         import subprocess
         import sys
 
-        from evolve.ray_local import PRIVATE_NET, private_network
+        from skillcompose.evolve.ray_local import PRIVATE_NET, private_network
 
         if not private_network():
             raise SystemExit("bench_evolve.py --ray: needs a private network namespace "

@@ -18,12 +18,18 @@ import time
 
 import numpy as np
 
-from robots.base_placement import BasePlacer, random_table_scene
-from robots.collision import Scene, check_collisions
-from robots.ik import IKSolver, IKTarget
-from robots.model import FloatArray, KinematicChain, RobotModel, find_pr2_urdf, load_pr2
-from robots.optimisation import ConstrainedIK, OptimisedBasePlacer
-from robots.reachability import (
+from skillcompose.robots.base_placement import BasePlacer, random_table_scene
+from skillcompose.robots.collision import Scene, check_collisions
+from skillcompose.robots.ik import IKSolver, IKTarget
+from skillcompose.robots.model import (
+    FloatArray,
+    KinematicChain,
+    RobotModel,
+    find_pr2_urdf,
+    load_pr2,
+)
+from skillcompose.robots.optimisation import ConstrainedIK, OptimisedBasePlacer
+from skillcompose.robots.reachability import (
     DATASET_PATH,
     WEIGHTS_PATH,
     RBFClassifier,

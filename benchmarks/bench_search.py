@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # the task modules under benchmarks/tasks, run from anywhere
     sys.path.insert(0, str(ROOT))
 
-from evolve import PRESETS, EvolutionConfig, check_fresh, evolve, simplify  # noqa: E402
+from skillcompose.evolve import PRESETS, EvolutionConfig, check_fresh, evolve, simplify  # noqa: E402
 from skillcompose.task import load_task  # noqa: E402
 
 Z = 0.99  # Koza's probability of success
@@ -179,7 +179,7 @@ class RunResult:
     curve: list[tuple[int, float, int]] = field(default_factory=list)
     # (generation, best so far, episodes so far)
     fresh_rate: float | None = None  # of the FSA as evolved
-    fresh_rate_simplified: float | None = None  # of the exported FSA (evolve.simplify)
+    fresh_rate_simplified: float | None = None  # of the exported FSA (skillcompose.evolve.simplify)
 
 
 def run_one(bench: Bench, config: str, seed: int, generations: int,

@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose import FSA, compile_fsa, load_fsa, save_fsa
+from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.executor import trial_rngs
 from skillcompose.task import Task, load_task
 
@@ -116,7 +116,7 @@ class Placement:
 
 def kinematic_placements(fsa: FSA, topology: str, n: int) -> list[Placement]:
     """The file, unchanged, on the kinematic backend over ``n`` judged worlds."""
-    from skills.move_to_push import ARM_CODES, classifier_label, object_in_robot_frame
+    from skillcompose.skills.move_to_push import ARM_CODES, classifier_label, object_in_robot_frame
 
     task = load_task(TASK, network=topology, backend="kinematic", judge=True)
     compiled = compile_fsa(fsa, task.registry, "kinematic")
@@ -168,10 +168,10 @@ def _circle(radius: float):  # type: ignore[no-untyped-def]
 def render_robot(fsa: FSA, topology: str, path: Path) -> str:
     """The PR2 at the base pose the FSA's MoveBase chooses in a judged world, with the arm
     configuration IK found for the push; returns a caption."""
-    from robots.collision import Scene
-    from robots.model import ARMS, RobotPose, load_pr2
-    from robots.render import render_configuration
-    from skills.kinematic_world import read_state
+    from skillcompose.robots.collision import Scene
+    from skillcompose.robots.model import ARMS, RobotPose, load_pr2
+    from skillcompose.robots.render import render_configuration
+    from skillcompose.skills.kinematic_world import read_state
 
     task = load_task(TASK, network=topology, backend="kinematic", judge=True)
     compiled = compile_fsa(fsa, task.registry, "kinematic")
@@ -218,7 +218,7 @@ def speed(topology: str, fsa: FSA, episodes: int) -> tuple[float, list[str]]:
     table = stats.stats  # type: ignore[attr-defined]
     groups = {
         "world setup (examples.move_to_push)": ("move_to_push.py", "random_world"),
-        "network (skills.network)": ("network.py", "__call__"),
+        "network (skillcompose.skills.network)": ("network.py", "__call__"),
         "reachability classifier": ("reachability.py", "predict_one"),
     }
     for label, (file, func) in groups.items():

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose import FSA, save_fsa
+from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.robustness import SweepRow, plot_sweep, robustness_sweep, write_csv
 from skillcompose.task import load_task
 
@@ -177,7 +177,7 @@ def report(
         "*solves* when the best individual of a generation has fitness 0 (the water is in the "
         "glass in every episode of its evaluation). The *solved rate* checks the exported "
         f"FSA afterwards on {args.check_reps} fresh episodes at p_fail 0.2, as evolved and "
-        "after `evolve.simplify`.",
+        "after `skillcompose.evolve.simplify`.",
         "",
         "## Evolution",
         "",

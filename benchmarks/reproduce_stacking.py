@@ -35,9 +35,9 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose import FSA, compile_fsa, load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
+from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.executor import trial_rngs
 from skillcompose.task import load_task
 
@@ -134,9 +134,9 @@ def kinematic_scenes(fsa: FSA, n: int, picture: Path | None, *, picture_only: bo
     """Runs ``fsa`` on ``n`` kinematic scenes: stacked count, outcomes, and the caption of
     the picture (when ``picture`` is given) of the PR2 at the end of the first successful
     run; with ``picture_only``, stops once the picture is drawn."""
-    from robots.model import load_pr2
-    from robots.render import render_configuration
-    from skills.replay import robot_pose, world_scene
+    from skillcompose.robots.model import load_pr2
+    from skillcompose.robots.render import render_configuration
+    from skillcompose.skills.replay import robot_pose, world_scene
 
     task = load_task(TASK, backend="kinematic", trials=1)
     compiled = compile_fsa(fsa, task.registry, "kinematic")
@@ -345,7 +345,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "",
         f"![the PR2 at the end of a stacking run](stacking_robot.png) ({caption})",
         "",
-        "Replay any kinematic run step by step: `python -m skills.replay "
+        "Replay any kinematic run step by step: `python -m skillcompose.skills.replay "
         "docs/results/stacking_best.fsa.yaml --task examples.stacking --set "
         "backend=kinematic --seed N --out DIR`.",
         "",

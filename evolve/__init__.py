@@ -2,7 +2,7 @@
 
 ::
 
-    from evolve import EvolutionConfig, evolve, simplify
+    from skillcompose.evolve import EvolutionConfig, evolve, simplify
     from skillcompose.task import load_task
 
     task = load_task("examples.toy_task", p_fail=0.1)
@@ -62,7 +62,8 @@ else:
     # Each public name is imported with its module when it is first used, so that importing
     # the package (the command line's --help does) stays cheap. The table repeats the imports
     # above, which only the type checker runs; a test keeps the two equal. lazy_loader also
-    # keeps the function ``simplify`` from being replaced by the module ``evolve.simplify``
+    # keeps the function ``simplify`` from being replaced by the module
+    # ``skillcompose.evolve.simplify``
     # when that is imported.
     _EXPORTS = {
         "algorithm": "EvolutionResult GenerationRecord check_fresh evolve",

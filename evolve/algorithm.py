@@ -894,9 +894,10 @@ def evolve(
     - ``backend``: ``"serial"``, ``"process"`` (``workers`` processes, default all cores) or
       ``"ray"`` (``workers`` actors, default one per CPU of the cluster); the result does not
       depend on it.
-    - ``out_dir``: write the run directory (see :mod:`evolve.rundir`) as the run goes.
+    - ``out_dir``: write the run directory (see :mod:`skillcompose.evolve.rundir`) as the run goes.
     - ``resume``: a run directory to continue from its last checkpoint (see
-      :mod:`evolve.resume`). ``task`` must be the run's task; the seed, the settings, the
+      :mod:`skillcompose.evolve.resume`). ``task`` must be the run's task; the seed, the settings,
+      the
       simplification and the fresh-episode check are the run's. ``cfg``, when given, may
       differ from the run's only in ``generations`` (to extend a run: the result is the run
       an uninterrupted run to that budget would have given), ``checkpoint_every``,
@@ -906,7 +907,7 @@ def evolve(
     - ``seed_fsa``: an FSA (or file) placed in the first population, the rest random; the
       states that survive evolution keep their names (and, from a file, their comments).
     - ``simplify_result``: simplify the best FSA at the end (default on) with
-      ``simplify_trials`` fresh trials (default 200; see :func:`evolve.simplify`).
+      ``simplify_trials`` fresh trials (default 200; see :func:`skillcompose.evolve.simplify`).
     - ``check_trials``: fresh episodes on which the exported FSA is measured at the end
       (default 200; :func:`check_fresh`; ``result.fresh``, ``run.json``); 0 skips it. A
       deterministic task (``Task.deterministic``) uses one trial for evaluations,

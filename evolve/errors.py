@@ -12,7 +12,7 @@ class EvolutionError(SkillcomposeError):
 
 
 class EvolutionConfigError(EvolutionError, ValueError):
-    """An :class:`~evolve.config.EvolutionConfig` value is out of range."""
+    """An :class:`~skillcompose.evolve.config.EvolutionConfig` value is out of range."""
 
 
 class SeedFSAError(EvolutionError, ValueError):

@@ -20,8 +20,10 @@ do not change.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import ctypes
+import functools
 import math
 import multiprocessing
 import os
@@ -940,7 +942,37 @@ class ProcessEvaluator:
         self._pool = []
 
 
-_PROJECT_PACKAGES = ("skillcompose", "skills", "robots", "evolve")
+_PROJECT_PACKAGES = ("skillcompose",)
+
+
+@functools.lru_cache(maxsize=1)
+def _project_package() -> str:
+    """The folder of the ``skillcompose`` package as it installs, to ship to a cluster: the
+    package's own folder when its subpackages lie inside it (an installed wheel); else (a
+    source checkout, whose ``evolve/``, ``robots/`` and ``skills/`` are mapped into the
+    package by ``package-dir``) a copy laid out as installed, kept until the process ends
+    (Ray hashes the folder again for each actor it starts)."""
+    import importlib.util
+    import shutil
+    import tempfile
+
+    root = Path(str(sys.modules["skillcompose"].__file__)).resolve().parent
+    outside: dict[str, Path] = {}
+    for sub in ("evolve", "robots", "skills", "view"):
+        spec = importlib.util.find_spec(f"skillcompose.{sub}")
+        if spec is not None and spec.submodule_search_locations:
+            where = Path(next(iter(spec.submodule_search_locations))).resolve()
+            if not where.is_relative_to(root):
+                outside[sub] = where
+    if not outside:
+        return str(root)
+    stage = Path(tempfile.mkdtemp(prefix="skillcompose-ship-"))
+    atexit.register(shutil.rmtree, stage, True)
+    skip = shutil.ignore_patterns("__pycache__", "*.pyc")
+    shutil.copytree(root, stage / "skillcompose", ignore=skip)
+    for sub, where in outside.items():
+        shutil.copytree(where, stage / "skillcompose" / sub, ignore=skip)
+    return str(stage / "skillcompose")
 
 
 def _installed(path: str) -> bool:
@@ -989,9 +1021,12 @@ def ray_runtime_env(task: Task) -> tuple[dict[str, Any], TaskRef]:
         found = sys.modules.get(top)
         if found is None:
             continue
+        if top in _PROJECT_PACKAGES:
+            modules.append(_project_package())
+            continue
         paths = list(getattr(found, "__path__", []))
         where = paths[0] if len(paths) == 1 else getattr(found, "__file__", None)
-        if where and (top in _PROJECT_PACKAGES or not _installed(where)):
+        if where and not _installed(where):
             modules.append(where)
     env["py_modules"] = modules
     return env, ref
@@ -1048,7 +1083,7 @@ class RayEvaluator:
     Actors are replaced after ``max_jobs`` jobs or ``max_growth_mb`` of memory growth.
 
     With ``direct`` (the default) the chunks and their results go over a connection of
-    :mod:`evolve.channel` from the driver to each actor, not through Ray's calls, which
+    :mod:`skillcompose.evolve.channel` from the driver to each actor, not through Ray's calls, which
     cost a tenth of a small generation; when the driver cannot connect to the first
     actors (a firewall that opens Ray's ports only, say), it warns once and uses Ray's
     calls (``direct=False``).

@@ -1,11 +1,12 @@
 """Pour water on the PR2: the hand-written pour-water FSA, unchanged, on kinematic skills.
 
 The reference FSA ``examples/pour_water_reference.fsa.yaml`` was written (and evolved FSAs
-are found) against the abstract ``"sim"`` skills of :mod:`skills.pour_water`. This task keeps
+are found) against the abstract ``"sim"`` skills of :mod:`skillcompose.skills.pour_water`. This
+task keeps
 that world, setup and fitness (:mod:`examples.pour_water`, equation (1)) and runs the same
-FSA on the ``"kinematic"`` skills of :mod:`skills.kinematic`: IK, joint limits and the
+FSA on the ``"kinematic"`` skills of :mod:`skillcompose.skills.kinematic`: IK, joint limits and the
 table decide whether a motion succeeds, not ``p_fail``. The robot stands at the world
-origin facing +x; the table is :data:`skills.kinematic_world.DEFAULT_TABLE_WORLD`.
+origin facing +x; the table is :data:`skillcompose.skills.kinematic_world.DEFAULT_TABLE_WORLD`.
 
 Run it::
 
@@ -25,8 +26,8 @@ from pathlib import Path
 
 from examples import pour_water as pour_water_task
 from skillcompose import Registry, compile_fsa, load_fsa
+from skillcompose.skills import kinematic, pour_water
 from skillcompose.task import Task
-from skills import kinematic, pour_water
 
 __all__ = ["REFERENCE_FSA", "main", "make_task", "register", "run_reference"]
 

@@ -22,7 +22,7 @@ from typing import Annotated, Literal
 import numpy as np
 
 from skillcompose import FSA, RUNNING, Blackboard, Param, Registry, State, compile_fsa, skill
-from skillcompose_view.live import LivePublisher
+from skillcompose.view.live import LivePublisher
 
 SPEED_M_S = 0.5
 WAYPOINTS_M = ((2.0, 0.0), (2.0, 2.0), (0.0, 2.0))

@@ -2,7 +2,7 @@
 
 A table with one small object on it stands in a room; the robot starts near the table and
 must move its base, set its torso and choose an arm so that it can push the object. The
-skills (:mod:`skills.move_to_push`): RecogniseObject, MoveBase (a neural network whose
+skills (:mod:`skillcompose.skills.move_to_push`): RecogniseObject, MoveBase (a neural network whose
 weights evolution finds) and Push (terminating: the run ends with its outcome).
 
 Evolve, then run the result on the PR2 model::
@@ -14,7 +14,7 @@ Evolve, then run the result on the PR2 model::
 Settings (``make_task(**settings)``, ``--set name=value``):
 
 - ``network`` (``layered``, default, or ``recurrent``): MoveBase's topology,
-  :mod:`skills.network` (38 or 112 weights).
+  :mod:`skillcompose.skills.network` (38 or 112 weights).
 - ``backend`` (``sim``, default, or ``kinematic``): Push judged by the reachability
   classifier, or by the PR2 model (IK with joint limits, no collision with the table).
 - ``trials`` (default 10): worlds averaged per evaluation; one trial lets a random FSA that
@@ -57,13 +57,13 @@ from typing import Any, get_args
 
 import numpy as np
 
-from robots.collision import BASE_HALF_EXTENTS_M, Box
 from skillcompose import Blackboard, Registry
+from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box
+from skillcompose.skills import kinematic as skills_kinematic
+from skillcompose.skills import move_to_push as skills_push
+from skillcompose.skills.move_to_push import base_hits_table, base_in_room, object_in_robot_frame
+from skillcompose.skills.network import TOPOLOGIES, Topology
 from skillcompose.task import Task, TaskError
-from skills import kinematic as skills_kinematic
-from skills import move_to_push as skills_push
-from skills.move_to_push import base_hits_table, base_in_room, object_in_robot_frame
-from skills.network import TOPOLOGIES, Topology
 
 __all__ = [
     "JUDGE_MAX_DISTANCE_M",

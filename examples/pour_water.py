@@ -1,7 +1,7 @@
 """Pouring water: the paper's first experiment (section 4.1) as a task.
 
 The robot faces a jug of water and a glass on a table and must pour the water into the
-glass with the six skills of :mod:`skills.pour_water`: RecogniseObject, MoveToObject,
+glass with the six skills of :mod:`skillcompose.skills.pour_water`: RecogniseObject, MoveToObject,
 GraspObject, MoveGripperToParam (x, y, z), RotateGripperToParam (ρ, φ, θ) and CheckSuccess.
 
 Run the hand-written solution, then evolve one::
@@ -26,7 +26,8 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   frame, metres; table top at z = 0.75 m). The paper's 6 parameters are absolute, so only a
   fixed world has "one set of values" that solves it. ``setup`` draws nothing from the
   run's generator: every random draw of a run belongs to the skills.
-- "Only one set of values" is made exact by tolerances (see :mod:`skills.pour_water`): the
+- "Only one set of values" is made exact by tolerances (see :mod:`skillcompose.skills.pour_water`):
+  the
   spout within 4 cm of the rim's centre horizontally and 0–15 cm above it, the jug tilted
   60°–120° from upright; the yaw θ does not pour a jug and is free. The position window is
   about 0.1 % of the workspace, which is what makes the search hard; the tilt band is about
@@ -51,9 +52,9 @@ from typing import Any
 import numpy as np
 
 from skillcompose import TIMEOUT, Blackboard, Registry
+from skillcompose.skills import pour_water as skills_pour_water
+from skillcompose.skills.pour_water import Vec3, distance
 from skillcompose.task import Task, TaskError
-from skills import pour_water as skills_pour_water
-from skills.pour_water import Vec3, distance
 
 __all__ = [
     "DEFAULT_P_FAIL",

@@ -1,7 +1,7 @@
 """Stacking: the paper's third experiment (section 4.3) as a task.
 
 Two objects stand on a table in front of the robot; it must put either one on the other.
-The skills (:mod:`skills.stacking`): RecogniseObject (both objects), GraspParam(which),
+The skills (:mod:`skillcompose.skills.stacking`): RecogniseObject (both objects), GraspParam(which),
 MoveToReach (the FSA evolved for moving to push, ``examples/move_to_reach.fsa.yaml``, as a
 nested skill), MoveGripperToStack(which, dx, dy, dz), OpenGripper and CheckSuccess
 (terminating: the run ends with its outcome).
@@ -44,7 +44,7 @@ Decisions where section 4.3 is vague (kept by the skills and by this task):
   nearest side ±15°, and the classifier says no arm reaches either object, so it is.
 - MoveToReach's target: with an object held, the other object (where it will be stacked);
   empty-handed, the object GraspParam last tried to grasp, else the first
-  (:func:`skills.stacking.reach_target`). When an arm already reaches it (the check of
+  (:func:`skillcompose.skills.stacking.reach_target`). When an arm already reaches it (the check of
   MoveToReach's own terminating Push), MoveToReach succeeds without moving: the evolved
   network never started within reach in section 4.2, and from there it drove the robot
   away. It is one step of the 15 here, whatever its own run took (its file's own
@@ -85,14 +85,14 @@ from typing import Any, get_args
 
 import numpy as np
 
-from robots.collision import BASE_HALF_EXTENTS_M, Box
 from skillcompose import Blackboard, Registry
 from skillcompose.fsa import TIMEOUT
+from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box
+from skillcompose.skills import stacking as skills_stacking
+from skillcompose.skills.move_to_push import base_hits_table, base_in_room, classifier_label
+from skillcompose.skills.network import TOPOLOGIES, Topology
+from skillcompose.skills.stacking import stacked
 from skillcompose.task import Task, TaskError
-from skills import stacking as skills_stacking
-from skills.move_to_push import base_hits_table, base_in_room, classifier_label
-from skills.network import TOPOLOGIES, Topology
-from skills.stacking import stacked
 
 __all__ = [
     "MOVE_TO_REACH_FILE",
@@ -300,8 +300,8 @@ def register(
     skills_stacking.register(registry, move_to_reach=move_to_reach, topology=network,
                              kinematic=kinematic)
     if kinematic:
-        from skills import kinematic as skills_kinematic
-        from skills.kinematic_world import KinematicWorld
+        from skillcompose.skills import kinematic as skills_kinematic
+        from skillcompose.skills.kinematic_world import KinematicWorld
 
         world = KinematicWorld()
         for s in (skills_kinematic.grasp_param, skills_kinematic.move_gripper_to_stack,

@@ -33,7 +33,8 @@ else:
     import lazy_loader
 
     # Each public name is imported with its module when it is first used, so that importing
-    # the package stays cheap (Pinocchio loads with robots.model). The table repeats the
+    # the package stays cheap (Pinocchio loads with skillcompose.robots.model). The table repeats
+    # the
     # imports above, which only the type checker runs; a test keeps the two equal.
     _EXPORTS = {
         "errors": ("ChainNotFound DatasetError FrameNotFound InvalidConfiguration "

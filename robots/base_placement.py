@@ -4,7 +4,7 @@ The fast path samples base poses around the target (biased to the arm's
 comfortable zone in front of its shoulder), rejects those whose base collides
 with the scene, and solves IK for the arm and torso with the base fixed,
 rejecting solutions whose arm collides. The constrained optimisation path over
-base, torso and arm together is :func:`robots.optimisation.place_base_optimised`.
+base, torso and arm together is :func:`skillcompose.robots.optimisation.place_base_optimised`.
 """
 
 from __future__ import annotations
@@ -14,9 +14,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robots.collision import BASE_HALF_EXTENTS_M, BODY_HEIGHT_M, Box, Scene, check_collisions
-from robots.ik import IKSolver, IKStatus, IKTarget
-from robots.model import BASE_JOINT, Arm, FloatArray, RobotModel, RobotPose
+from skillcompose.robots.collision import (
+    BASE_HALF_EXTENTS_M,
+    BODY_HEIGHT_M,
+    Box,
+    Scene,
+    check_collisions,
+)
+from skillcompose.robots.ik import IKSolver, IKStatus, IKTarget
+from skillcompose.robots.model import BASE_JOINT, Arm, FloatArray, RobotModel, RobotPose
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from robots.errors import InvalidConfiguration
-from robots.model import TOOL_FRAMES, Arm, KinematicChain
+from skillcompose.robots.errors import InvalidConfiguration
+from skillcompose.robots.model import TOOL_FRAMES, Arm, KinematicChain
 
 _AXES = {
     "X": np.array([1.0, 0.0, 0.0]),

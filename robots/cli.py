@@ -18,14 +18,15 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robots.errors import InvalidConfiguration, RobotModelError
 from skillcompose.arguments import note
+from skillcompose.robots.errors import InvalidConfiguration, RobotModelError
 
 if TYPE_CHECKING:
-    from robots.collision import Scene
-    from robots.model import RobotModel, RobotPose
+    from skillcompose.robots.collision import Scene
+    from skillcompose.robots.model import RobotModel, RobotPose
 
-# Pinocchio (robots.model, robots.collision) is imported when a robot command runs, not when
+# Pinocchio (skillcompose.robots.model, skillcompose.robots.collision) is imported when a robot
+# command runs, not when
 # `skillcompose --help` registers the command.
 
 _POSE_KEYS = {"base_xy_yaw", "torso_height_m", "arm_rad", "boxes"}
@@ -50,8 +51,8 @@ def register_cli(subparsers: Any) -> None:
 
 def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
     """A pose and scene from ``neutral``, ``tucked`` or a JSON file (see module doc)."""
-    from robots.collision import Box, Scene
-    from robots.model import RobotPose
+    from skillcompose.robots.collision import Box, Scene
+    from skillcompose.robots.model import RobotPose
 
     if spec == "neutral":
         return model.neutral_pose(), Scene()
@@ -99,8 +100,8 @@ def load_configuration(model: RobotModel, spec: str) -> tuple[RobotPose, Scene]:
 
 def run_robot_cli(args: argparse.Namespace) -> int:
     """Run a ``robot`` sub-command; returns the exit code (errors printed, code 2)."""
-    from robots.model import load_pr2
-    from robots.render import render_configuration
+    from skillcompose.robots.model import load_pr2
+    from skillcompose.robots.render import render_configuration
 
     try:
         model = load_pr2()

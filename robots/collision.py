@@ -14,8 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robots.errors import InvalidConfiguration
-from robots.model import ARM_JOINTS, ROBOT_FRAME, TOOL_FRAMES, FloatArray, KinematicChain
+from skillcompose.robots.errors import InvalidConfiguration
+from skillcompose.robots.model import (
+    ARM_JOINTS,
+    ROBOT_FRAME,
+    TOOL_FRAMES,
+    FloatArray,
+    KinematicChain,
+)
 
 #: Base/body footprint half extents (x, y) [m] and height [m].
 BASE_HALF_EXTENTS_M = (0.334, 0.334)

@@ -25,8 +25,15 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from robots.errors import InvalidConfiguration
-from robots.model import ARM_JOINTS, TORSO_JOINT, Arm, FloatArray, KinematicChain, _wrap_rad
+from skillcompose.robots.errors import InvalidConfiguration
+from skillcompose.robots.model import (
+    ARM_JOINTS,
+    TORSO_JOINT,
+    Arm,
+    FloatArray,
+    KinematicChain,
+    _wrap_rad,
+)
 
 #: Default convergence tolerances: position [m] and orientation [rad].
 POSITION_TOLERANCE_M = 1e-6

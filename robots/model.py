@@ -25,7 +25,12 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from robots.errors import ChainNotFound, FrameNotFound, InvalidConfiguration, RobotDataNotFound
+from skillcompose.robots.errors import (
+    ChainNotFound,
+    FrameNotFound,
+    InvalidConfiguration,
+    RobotDataNotFound,
+)
 
 FloatArray = NDArray[np.float64]
 Arm = Literal["left", "right"]

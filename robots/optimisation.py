@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from robots.casadi_kinematics import CasadiKinematics
-from robots.collision import _ARM_SEGMENTS, BASE_RADIUS_M, Box, Scene, check_collisions
-from robots.errors import InvalidConfiguration
-from robots.ik import IKResult, IKStatus, IKTarget
-from robots.model import (
+from skillcompose.robots.casadi_kinematics import CasadiKinematics
+from skillcompose.robots.collision import _ARM_SEGMENTS, BASE_RADIUS_M, Box, Scene, check_collisions
+from skillcompose.robots.errors import InvalidConfiguration
+from skillcompose.robots.ik import IKResult, IKStatus, IKTarget
+from skillcompose.robots.model import (
     ARM_JOINTS,
     ARMS,
     ROBOT_FRAME,

@@ -11,9 +11,9 @@ reach, the arm on the object's side (``y >= 0``: left).
 
 Regenerate the shipped data set and weights with::
 
-    python -m robots.reachability generate --n 16000 --seed 0
-    python -m robots.reachability train
-    python -m robots.reachability evaluate
+    python -m skillcompose.robots.reachability generate --n 16000 --seed 0
+    python -m skillcompose.robots.reachability train
+    python -m skillcompose.robots.reachability evaluate
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from robots.errors import DatasetError, InvalidConfiguration
-from robots.ik import IKSolver, IKTarget
-from robots.model import TORSO_JOINT, Arm, FloatArray, RobotModel, load_pr2
+from skillcompose.robots.errors import DatasetError, InvalidConfiguration
+from skillcompose.robots.ik import IKSolver, IKTarget
+from skillcompose.robots.model import TORSO_JOINT, Arm, FloatArray, RobotModel, load_pr2
 
 DATA_DIR = Path(__file__).parent / "data"
 DATASET_PATH = DATA_DIR / "reachability_pr2_v1.npz"
@@ -157,7 +157,8 @@ def load_dataset(path: Path = DATASET_PATH) -> tuple[FloatArray, NDArrayInt, int
     """Inputs, labels and seed of a data set written by :func:`save_dataset`."""
     if not path.is_file():
         raise DatasetError(
-            f"{path} not found; regenerate it with `python -m robots.reachability generate`"
+            f"{path} not found; regenerate it with "
+            "`python -m skillcompose.robots.reachability generate`"
         )
     with np.load(path) as data:
         try:
@@ -286,14 +287,14 @@ class RBFClassifier:
     def load(cls, path: Path = WEIGHTS_PATH) -> RBFClassifier:
         if not path.is_file():
             raise DatasetError(
-                f"{path} not found; retrain with `python -m robots.reachability train`"
+                f"{path} not found; retrain with `python -m skillcompose.robots.reachability train`"
             )
         with np.load(path) as d:
             metric = str(d["metric"]) if "metric" in d else "x,y,z-h,bearing"
             if metric != METRIC:
                 raise DatasetError(
                     f"{path}: weights for the metric {metric!r}, this version uses "
-                    f"{METRIC!r}; retrain with `python -m robots.reachability train`"
+                    f"{METRIC!r}; retrain with `python -m skillcompose.robots.reachability train`"
                 )
             return cls(
                 d["centres"],
@@ -407,8 +408,8 @@ class ReachabilityModel:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m robots.reachability {generate,train,evaluate}``."""
-    parser = argparse.ArgumentParser(prog="python -m robots.reachability")
+    """``python -m skillcompose.robots.reachability {generate,train,evaluate}``."""
+    parser = argparse.ArgumentParser(prog="python -m skillcompose.robots.reachability")
     sub = parser.add_subparsers(dest="command", required=True)
     gen = sub.add_parser("generate", help="label a seeded data set with IK")
     gen.add_argument("--n", type=int, default=16000)

@@ -21,9 +21,16 @@ import pinocchio as pin
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from robots.collision import Box, Scene
-from robots.errors import RobotDataNotFound
-from robots.model import ARMS, BASE_JOINT, TOOL_FRAMES, FloatArray, RobotModel, RobotPose
+from skillcompose.robots.collision import Box, Scene
+from skillcompose.robots.errors import RobotDataNotFound
+from skillcompose.robots.model import (
+    ARMS,
+    BASE_JOINT,
+    TOOL_FRAMES,
+    FloatArray,
+    RobotModel,
+    RobotPose,
+)
 
 __all__ = ["MAX_FACES_PER_MESH", "Camera", "LinkMesh", "RobotTriangles", "fit_camera",
            "link_meshes", "render_configuration", "robot_triangles", "scene_camera"]

@@ -60,10 +60,10 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 SUBCOMMAND_MODULES = (
-    "evolve.cli",
+    "skillcompose.evolve.cli",
     "skillcompose.robustness",
-    "robots.cli",
-    "skillcompose_view.cli",
+    "skillcompose.robots.cli",
+    "skillcompose.view.cli",
 )
 
 

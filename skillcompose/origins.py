@@ -13,11 +13,13 @@ from __future__ import annotations
 import importlib.machinery
 import os
 import sys
+from collections.abc import Iterator
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 from typing import Any
 
 __all__ = ["SOURCE_ROOT", "import_path", "inside", "is_file_target", "module_origins",
-           "use_import_path"]
+           "on_path", "use_import_path"]
 
 SOURCE_ROOT = Path(__file__).resolve().parents[1]
 """The folder holding this package: in a source checkout, its root (``examples`` beside)."""
@@ -72,11 +74,30 @@ def import_path(top: str) -> list[str]:
     return path
 
 
-def use_import_path(top: str) -> None:
-    """Extend ``sys.path`` to :func:`import_path` before importing ``top``'s module."""
-    for entry in import_path(top):
-        if entry not in sys.path:
-            sys.path.append(entry)
+@contextmanager
+def on_path(entries: list[str], *, first: bool = False) -> Iterator[None]:
+    """``sys.path`` with ``entries`` added (at its end, or at its start when ``first``) for
+    the ``with`` block only: the folders a user named (the current directory, a task file's
+    own folder) serve the one import they were named for, and no later import reads code
+    from them by accident."""
+    added = [e for e in dict.fromkeys(entries) if e not in sys.path]
+    if first:
+        sys.path[0:0] = added
+    else:
+        sys.path.extend(added)
+    try:
+        yield
+    finally:
+        for entry in added:
+            if entry in sys.path:
+                sys.path.remove(entry)
+        importlib.invalidate_caches()
+
+
+def use_import_path(top: str) -> AbstractContextManager[None]:
+    """A ``with`` block in which ``sys.path`` is :func:`import_path`, to import ``top``'s
+    module as the runtime does; the path is as it was afterwards."""
+    return on_path(import_path(top))
 
 
 def module_origins(module: str) -> list[Path]:

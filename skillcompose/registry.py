@@ -30,7 +30,7 @@ from .errors import RegistryError, UnknownSkillError, exception_text, one_line
 from .fsa import FSA
 from .fsafile import load_fsa
 from .nested import fsa_skill
-from .origins import use_import_path
+from .origins import on_path, use_import_path
 from .params import check_declared
 from .skill import Skill, SkillSpec
 
@@ -326,22 +326,21 @@ def _import_target(target: str) -> ModuleType:
         spec = importlib.util.spec_from_file_location(mod_name, path)
         if spec is None or spec.loader is None:
             raise RegistryError(f"cannot import {target} as a Python module")
-        here = str(path.resolve().parent)
-        if here not in sys.path:  # the modules beside the file
-            sys.path.insert(0, here)
         module = importlib.util.module_from_spec(spec)
         sys.modules[mod_name] = module
-        try:
-            spec.loader.exec_module(module)
+        try:  # the modules beside the file, for this import only
+            with on_path([str(path.resolve().parent)], first=True):
+                spec.loader.exec_module(module)
         except BaseException:
             del sys.modules[mod_name]
             raise
         return module
     # the current directory, as `python -m` has it, and a source checkout's own packages
-    # (examples.*): the path skillcompose.origins checks before a run's module is imported
-    use_import_path(target.split(".", 1)[0])
+    # (examples.*), for this import only: the path skillcompose.origins checks before a
+    # run's module is imported
     try:
-        return importlib.import_module(target)
+        with use_import_path(target.split(".", 1)[0]):
+            return importlib.import_module(target)
     except ModuleNotFoundError as exc:
         if exc.name and target.startswith(exc.name):
             raise RegistryError(

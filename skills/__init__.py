@@ -1,13 +1,16 @@
 """Skill libraries: task-level skills, one module per task and backend.
 
-- :mod:`skills.pour_water`: the six skills of the paper's pouring experiment (section 4.1)
+- :mod:`skillcompose.skills.pour_water`: the six skills of the paper's pouring experiment (section
+  4.1)
   on the abstract ``"sim"`` backend.
-- :mod:`skills.kinematic`: their twins and more skills on the ``"kinematic"`` backend, which
-  move a PR2 (IK, joint limits, table collisions); :mod:`skills.kinematic_world` holds the
+- :mod:`skillcompose.skills.kinematic`: their twins and more skills on the ``"kinematic"`` backend,
+  which
+  move a PR2 (IK, joint limits, table collisions); :mod:`skillcompose.skills.kinematic_world` holds
+  the
   robot's blackboard keys and frames.
 
 Each module defines ``register(registry)``; load one with
-``registry.load_module("skills.pour_water")``. Skills of different backends share names
+``registry.load_module("skillcompose.skills.pour_water")``. Skills of different backends share names
 (``MoveToObject``), so their modules are exported whole rather than their skills one by one.
 """
 

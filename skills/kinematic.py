@@ -5,11 +5,11 @@ outcomes of the abstract ``"sim"`` skills, so an FSA found with the abstract ski
 unchanged on these ones::
 
     registry = Registry()
-    skills.pour_water.register(registry)   # "sim"
-    skills.kinematic.register(registry)    # "kinematic"
+    skillcompose.skills.pour_water.register(registry)   # "sim"
+    skillcompose.skills.kinematic.register(registry)    # "kinematic"
     compile_fsa(fsa, registry, "kinematic").run(setup(rng), rng)
 
-or, task-free, ``skillcompose run FILE --skills skills.kinematic --backend kinematic``.
+or, task-free, ``skillcompose run FILE --skills skillcompose.skills.kinematic --backend kinematic``.
 
 Instead of a coin flip with ``p_fail``, a kinematic skill fails for a kinematic reason: IK
 finds no configuration (``unreachable``), only outside the joint limits (``joint_limits``),
@@ -17,9 +17,9 @@ or every configuration hits the table (``collision``); it writes the reason to
 ``last_failure_reason`` (and words to ``last_failure_detail``) and moves nothing. On success
 it writes the joint angles, the torso height, the tool poses and what each gripper holds,
 beside the abstract world keys the twin writes. Keys, frames and defaults:
-:mod:`skills.kinematic_world`.
+:mod:`skillcompose.skills.kinematic_world`.
 
-Twins of the pour-water skills (section 4.1, :mod:`skills.pour_water`):
+Twins of the pour-water skills (section 4.1, :mod:`skillcompose.skills.pour_water`):
 
 - ``RecogniseObject``: as the abstract one (perception is not kinematics).
 - ``MoveToObject``: the gripper upright 6 cm in front of the recognised jug, by IK (arm on
@@ -35,7 +35,7 @@ Twins of the pour-water skills (section 4.1, :mod:`skills.pour_water`):
 Skills of the paper's other experiments, which have no abstract twin yet:
 
 - ``MoveBase`` (weights), section 4.2: the twin of the network skill of
-  :mod:`skills.move_to_push` (built per topology by :func:`make_move_base`); the same
+  :mod:`skillcompose.skills.move_to_push` (built per topology by :func:`make_move_base`); the same
   network gives the base pose, torso height and arm, then the base moves on the PR2 model.
   Fails when the base or an arm hits the table or the base leaves the room.
 - ``Push``, section 4.2: the arm chosen by MoveBase pushes ``object_position_world`` 5 cm
@@ -57,10 +57,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 import pinocchio as pin
 
-from robots.collision import BASE_HALF_EXTENTS_M, Box, Scene, check_collisions
-from robots.model import ARMS, Arm
 from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
-from skills.kinematic_world import (
+from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box, Scene, check_collisions
+from skillcompose.robots.model import ARMS, Arm
+from skillcompose.skills.kinematic_world import (
     COLLISION_MARGIN_M,
     DETAIL_KEY,
     GRASP_KEY,
@@ -94,9 +94,9 @@ from skills.kinematic_world import (
     stack_object_name,
     transform_robot_to_world,
 )
-from skills.move_to_push import SAFETY_M, base_in_room, network_goal, weights_parameter
-from skills.network import Topology
-from skills.pour_water import (
+from skillcompose.skills.move_to_push import SAFETY_M, base_in_room, network_goal, weights_parameter
+from skillcompose.skills.network import Topology
+from skillcompose.skills.pour_water import (
     APPROACH_OFFSET_M,
     APPROACH_TOLERANCE_M,
     WORKSPACE_WORLD,
@@ -107,7 +107,7 @@ from skills.pour_water import (
     Roll,
     Yaw,
 )
-from skills.stacking import StackDX, StackDY, StackDZ, Which, landing_z
+from skillcompose.skills.stacking import StackDX, StackDY, StackDZ, Which, landing_z
 
 __all__ = [
     "BACKEND",
@@ -393,7 +393,8 @@ def reachable(
     """Can ``arm`` grasp ``object`` from where the robot stands? A condition: moves nothing.
 
     The grasp is horizontal, pointing along the bearing from the base (the grasp of
-    :mod:`robots.reachability`), the torso stays at its height, collisions with the table
+    :mod:`skillcompose.robots.reachability`), the torso stays at its height, collisions with the
+    table
     count. ``yes`` when IK finds a collision-free configuration; ``no`` writes the reason.
     """
     position = object_position(bb, object)
@@ -530,9 +531,10 @@ def move_base_pose(
 
 
 def make_move_base(topology: Topology) -> KinematicSkill:
-    """The kinematic twin of the network ``MoveBase`` of :mod:`skills.move_to_push`: the
-    same network and the same mapping of its outputs to a base pose, torso height and arm,
-    then the motion of :func:`move_base_pose` on the PR2 model."""
+    """The kinematic twin of the network ``MoveBase`` of
+    :mod:`skillcompose.skills.move_to_push`: the same network and the same mapping of its
+    outputs to a base pose, torso height and arm, then the motion of :func:`move_base_pose`
+    on the PR2 model."""
     weights_type: Any  # a run-time Annotated[...]: its length depends on the topology
     weights_type, zeros = weights_parameter(topology)
 
@@ -605,7 +607,8 @@ def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
     """Grasp the first (``which`` > 0.5) or second stacking object, from the side else from
-    above (:data:`skills.kinematic_world.GRASP_KINDS`), by IK with the arm on its side (then
+    above (:data:`skillcompose.skills.kinematic_world.GRASP_KINDS`), by IK with the arm on its side
+    (then
     the other). ``failure``: ``no_object``, ``not_recognised``, ``already_holding`` or the IK
     reason. Writes the object it tries to ``grasp_target`` and,
     grasped, appends it to ``objects_grasped``."""
@@ -740,10 +743,11 @@ TWINS = tuple(s.name for s in SKILLS[:6])
 
 def register(registry: Registry, *, world: KinematicWorld | None = None) -> KinematicWorld:
     """Add every kinematic skill (backend ``"kinematic"``) to ``registry``, running in
-    ``world`` (default: a new :class:`~skills.kinematic_world.KinematicWorld`); return it.
+    ``world`` (default: a new :class:`~skillcompose.skills.kinematic_world.KinematicWorld`); return
+    it.
 
     The registry refuses a twin whose signature differs from the abstract skill of the same
-    name already in it. Task-free: ``--skills skills.kinematic``.
+    name already in it. Task-free: ``--skills skillcompose.skills.kinematic``.
     """
     world = world or KinematicWorld()
     for s in in_world(SKILLS, world):
@@ -752,7 +756,7 @@ def register(registry: Registry, *, world: KinematicWorld | None = None) -> Kine
 
 
 def register_move_to_push(registry: Registry, *, topology: Topology = "layered") -> None:
-    """Add the kinematic twins of the move-to-push skills (:mod:`skills.move_to_push`):
+    """Add the kinematic twins of the move-to-push skills (:mod:`skillcompose.skills.move_to_push`):
     MoveBase for a ``topology`` network and Push. RecogniseObject has one implementation
     for both backends (perception is not kinematics)."""
     world = KinematicWorld()

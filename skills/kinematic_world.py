@@ -1,6 +1,7 @@
 """The robot behind the kinematic skills: its state on the blackboard, the scene, and motions.
 
-The kinematic skills (:mod:`skills.kinematic`) move a PR2 (:mod:`robots`) instead of flipping
+The kinematic skills (:mod:`skillcompose.skills.kinematic`) move a PR2 (:mod:`robots`) instead of
+flipping
 coins. This module holds what they share: the blackboard keys of the robot, the conventions
 that tie the abstract world of the ``"sim"`` skills to the robot, the :class:`KinematicWorld`
 the skills move in (the model, loaded once per process and shared read-only, and the world's
@@ -35,7 +36,7 @@ key                           meaning
 ``arm_in_use``                the arm that is "the gripper" of the abstract skills, or None
 ``held_grasp``                how the held stacking object is held (``top`` at its centre or
                               ``side`` 3 cm above it, :data:`GRASP_KINDS`), or None
-``table_world``               the table, a :class:`robots.collision.Box`; default
+``table_world``               the table, a :class:`skillcompose.robots.collision.Box`; default
                               :data:`DEFAULT_TABLE_WORLD`; None for no table
 ``obstacles_world``           more boxes to avoid (a tuple of ``Box``); default none
 ``last_failure_reason``       why the last kinematic skill failed: one of
@@ -63,7 +64,8 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
-from robots.collision import (
+from skillcompose import Blackboard, Skill, SkillSpec, skill
+from skillcompose.robots.collision import (
     BASE_HALF_EXTENTS_M,
     BODY_HEIGHT_M,
     Box,
@@ -71,8 +73,8 @@ from robots.collision import (
     arm_spheres,
     check_collisions,
 )
-from robots.ik import IKSolver, IKStatus, IKTarget
-from robots.model import (
+from skillcompose.robots.ik import IKSolver, IKStatus, IKTarget
+from skillcompose.robots.model import (
     ARMS,
     TORSO_JOINT,
     TUCKED_ARM_RAD,
@@ -82,9 +84,8 @@ from robots.model import (
     RobotModel,
     load_pr2,
 )
-from skillcompose import Blackboard, Skill, SkillSpec, skill
 from skillcompose.skill import SkillFn
-from skills.pour_water import POUR_TILT_MAX_RAD, POUR_TILT_MIN_RAD, pours_into_glass
+from skillcompose.skills.pour_water import POUR_TILT_MAX_RAD, POUR_TILT_MIN_RAD, pours_into_glass
 
 __all__ = [
     "ARM_IN_USE_KEY",
@@ -178,7 +179,7 @@ IK_DIAGNOSE_RESTARTS = 3
 """Restarts of the limit-free IK that tells ``joint_limits`` from ``unreachable``."""
 MOBILE_BASE_ROBOT = Box((0.0, 0.0, 0.18), (*BASE_HALF_EXTENTS_M, 0.18), 0.0, "robot_base")
 """The PR2's mobile base in the robot frame (top at 0.36 m): the arms must stay out of it.
-:mod:`robots.collision` checks no self-collision; this is the one the skills add."""
+:mod:`skillcompose.robots.collision` checks no self-collision; this is the one the skills add."""
 _IK_TIME_CAP_S = 10.0  # a safety cap only: the restart count bounds the work
 _TOUCH_TOLERANCE_M = 0.002  # boxes may touch (stacked) within this much overlap
 
@@ -364,7 +365,8 @@ def commit(
     from the tool's rotation); every held object moves with its gripper (the jug's spout and
     a stacking object's centre sit at the tool frame's origin, or :data:`SIDE_GRASP_RISE_M` under it
     when ``held_grasp`` is ``side``), and a held jug's water pours
-    or spills as in :mod:`skills.pour_water`. ``moved_objects`` sets other objects' positions.
+    or spills as in :mod:`skillcompose.skills.pour_water`. ``moved_objects`` sets other objects'
+    positions.
     """
     robot_to_world = transform_robot_to_world(state.base_pose_world)
     bb[BASE_POSE_KEY] = state.base_pose_world
@@ -518,7 +520,7 @@ def boxes_collide(box: Box, others: Sequence[Box]) -> str | None:
 def horizontal_grasp_world(base_pose_world: Sequence[float], position_world: Sequence[float]
                            ) -> pin.SE3:
     """A horizontal grasp of ``position_world``, pointing along the bearing from the base
-    (the grasp of :mod:`robots.reachability`, in world)."""
+    (the grasp of :mod:`skillcompose.robots.reachability`, in world)."""
     bearing = math.atan2(position_world[1] - base_pose_world[1],
                          position_world[0] - base_pose_world[0])
     return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, bearing), np.asarray(position_world, float))

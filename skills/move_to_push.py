@@ -2,11 +2,13 @@
 
 - ``RecogniseObject``: writes where the one object on the table is
   (``object_location_world``); only ``success`` (the object is always visible).
-- ``MoveBase(weights)``: a neural network (:mod:`skills.network`) maps the recognised object,
+- ``MoveBase(weights)``: a neural network (:mod:`skillcompose.skills.network`) maps the recognised
+  object,
   seen from the robot, to a new base pose, a torso height and an arm. ``failure`` when the
   object was not recognised, or when the base at that pose would come closer than
   :data:`SAFETY_M` to the table or leave the room; else ``success``, and the robot is there.
-- ``Push``: ``success`` when the reachability classifier (:mod:`robots.reachability`, the
+- ``Push``: ``success`` when the reachability classifier (:mod:`skillcompose.robots.reachability`,
+  the
   paper's RBF network) says the object is reachable with the arm MoveBase chose, else
   ``failure``. A task makes it terminating: the run ends with its outcome.
 
@@ -16,11 +18,12 @@ the torso height over its range. Its five outputs o in (0, 1) mean: the base mov
 ``(2 o0 - 1, 2 o1 - 1) · BASE_STEP_M`` in the robot's current frame and turns by
 ``(2 o2 - 1) · π``; the torso goes to ``o3 · 0.31 m``; the left arm is chosen when
 ``o4 >= 0.5``, else the right. The same mapping is used by the kinematic twin
-(:mod:`skills.kinematic`), so an FSA file means the same pose on both backends.
+(:mod:`skillcompose.skills.kinematic`), so an FSA file means the same pose on both backends.
 
-Keys, shared with the kinematic backend (:mod:`skills.kinematic_world`): the robot's
+Keys, shared with the kinematic backend (:mod:`skillcompose.skills.kinematic_world`): the robot's
 ``base_pose_world`` (x, y, yaw), ``torso_height_m``, ``arm_in_use``; the world's
-``table_world`` (a :class:`robots.collision.Box`), ``object_position_world`` (the object's
+``table_world`` (a :class:`skillcompose.robots.collision.Box`), ``object_position_world`` (the
+object's
 centre) and ``room_half_m`` (the room is the square ``|x|, |y| <= room_half_m``).
 
 The weights' length depends on the network topology, so these skills are built for one
@@ -34,10 +37,16 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from robots.collision import BASE_HALF_EXTENTS_M, Box
-from robots.reachability import RBFClassifier
 from skillcompose import Blackboard, Param, Registry, Skill, skill
-from skills.network import TOPOLOGIES, WEIGHT_RANGE, Topology, make_network, weight_count
+from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box
+from skillcompose.robots.reachability import RBFClassifier
+from skillcompose.skills.network import (
+    TOPOLOGIES,
+    WEIGHT_RANGE,
+    Topology,
+    make_network,
+    weight_count,
+)
 
 __all__ = [
     "ARM_CODES",

@@ -2,7 +2,8 @@
 
 ::
 
-    python -m skills.replay examples/stacking_reference.fsa.yaml --task examples.stacking \\
+    python -m skillcompose.skills.replay examples/stacking_reference.fsa.yaml --task
+    examples.stacking \\
         --set backend=kinematic --seed 3 --out replay/
 
 writes ``replay/step_00.png`` (the world before the first step), one ``step_NN.png`` after
@@ -23,13 +24,13 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
-from robots.collision import Box, Scene
-from robots.model import TUCKED_ARM_RAD, RobotPose, load_pr2
-from robots.render import render_configuration, scene_camera
 from skillcompose import RUNNING, Blackboard, load_fsa, load_task
 from skillcompose.executor import compile_fsa, trial_rngs
+from skillcompose.robots.collision import Box, Scene
+from skillcompose.robots.model import TUCKED_ARM_RAD, RobotPose, load_pr2
+from skillcompose.robots.render import render_configuration, scene_camera
+from skillcompose.skills.kinematic_world import DEFAULT_OBJECT_HALF_EXTENTS_M, scene_world
 from skillcompose.task import parse_settings
-from skills.kinematic_world import DEFAULT_OBJECT_HALF_EXTENTS_M, scene_world
 
 __all__ = ["Replay", "main", "replay", "robot_pose", "world_scene"]
 
@@ -130,8 +131,8 @@ def _gif(frames: Sequence[Path], path: Path) -> Path:
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m skills.replay", description=__doc__.split(
-        "\n")[0])
+    p = argparse.ArgumentParser(prog="python -m skillcompose.skills.replay",
+                                description=__doc__.split("\n")[0])
     p.add_argument("fsa", help="the FSA file to run")
     p.add_argument("--task", required=True, help="task module, e.g. examples.stacking")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",

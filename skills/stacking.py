@@ -1,8 +1,8 @@
 """Skills of the paper's third experiment, stacking (section 4.3), on the ``sim`` backend.
 
 Two objects stand on a table; the robot must put one on the other. The world uses the keys
-of the kinematic backend (:mod:`skills.kinematic_world`), so the kinematic twins of
-:mod:`skills.kinematic` run on the same blackboard:
+of the kinematic backend (:mod:`skillcompose.skills.kinematic_world`), so the kinematic twins of
+:mod:`skillcompose.skills.kinematic` run on the same blackboard:
 
 =============================== ===========================================================
 key                             meaning
@@ -12,7 +12,7 @@ key                             meaning
 ``object_positions_world``      {name: centre (x, y, z) [m]}: the first and second object
 ``object_half_extents_m``       {name: half sizes [m]}: each object is an upright box
 ``object_locations_world``      where RecogniseObject saw both objects (absent until then)
-``table_world``                 the table, a :class:`robots.collision.Box`
+``table_world``                 the table, a :class:`skillcompose.robots.collision.Box`
 ``base_pose_world``             the robot's base (x [m], y [m], yaw [rad]) in world
 ``torso_height_m``              the torso lift [m]
 ``held_object_left`` / _right   the object in that gripper, or None
@@ -69,16 +69,16 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from robots.collision import Box
 from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
 from skillcompose.errors import RegistryError
 from skillcompose.fsa import FSA, State
 from skillcompose.fsafile import load_fsa
 from skillcompose.nested import FSASkill, fsa_skill
+from skillcompose.robots.collision import Box
 from skillcompose.skill import SkillFn, SkillSpec
-from skills import move_to_push as skills_push
-from skills.move_to_push import ARM_CODES, classifier_label
-from skills.network import Topology
+from skillcompose.skills import move_to_push as skills_push
+from skillcompose.skills.move_to_push import ARM_CODES, classifier_label
+from skillcompose.skills.network import Topology
 
 __all__ = [
     "DEFAULT_HALF_EXTENTS_M",
@@ -377,7 +377,7 @@ def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", 
 def reach_registry(topology: Topology = "layered", *, kinematic: bool = True) -> Registry:
     """The skills MoveToReach's states run on: RecogniseObject (:func:`recognise_target`),
     MoveBase for a ``topology`` network (both backends) and Push (:func:`reach_check`; on
-    the kinematic backend :func:`skills.stacking_kinematic.reach_check`)."""
+    the kinematic backend :func:`skillcompose.skills.stacking_kinematic.reach_check`)."""
     registry = Registry(backend="sim")
     registry.add(recognise_target)
     for s in skills_push.make_skills(topology):
@@ -385,8 +385,8 @@ def reach_registry(topology: Topology = "layered", *, kinematic: bool = True) ->
             registry.add(s)
     registry.add(reach_check)
     if kinematic:
-        from skills import kinematic as skills_kinematic
-        from skills import kinematic_world, stacking_kinematic
+        from skillcompose.skills import kinematic as skills_kinematic
+        from skillcompose.skills import kinematic_world, stacking_kinematic
 
         world = kinematic_world.KinematicWorld()
         registry.add(skills_kinematic.make_move_base(topology).in_world(world))

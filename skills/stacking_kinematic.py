@@ -1,8 +1,10 @@
-"""The kinematic side of the stacking experiment (section 4.3) that :mod:`skills.kinematic`
-does not hold: MoveToReach's terminating Push as a check on the PR2 model.
+"""The kinematic side of the stacking experiment (section 4.3) that
+:mod:`skillcompose.skills.kinematic` does not hold: MoveToReach's terminating Push as a check
+on the PR2 model.
 
-GraspParam, MoveGripperToStack and OpenGripper are the twins in :mod:`skills.kinematic`;
-RecogniseObject and CheckSuccess of :mod:`skills.stacking` serve both backends.
+GraspParam, MoveGripperToStack and OpenGripper are the twins in
+:mod:`skillcompose.skills.kinematic`;
+RecogniseObject and CheckSuccess of :mod:`skillcompose.skills.stacking` serve both backends.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from typing import Literal
 import numpy as np
 
 from skillcompose import Blackboard
-from skills.kinematic_world import (
+from skillcompose.skills.kinematic_world import (
     DETAIL_KEY,
     GRASP_KEY,
     GRASP_KINDS,
@@ -27,7 +29,7 @@ from skills.kinematic_world import (
     read_state,
     scene_world,
 )
-from skills.stacking import held, reach_arms, reach_goal
+from skillcompose.skills.stacking import held, reach_arms, reach_goal
 
 __all__ = ["reach_check"]
 
@@ -38,9 +40,12 @@ def reach_check(
     world: KinematicWorld, bb: Blackboard, rng: np.random.Generator
 ) -> Literal["success", "failure"]:
     """MoveToReach's Push on the PR2 model, moving nothing: ``success`` when IK finds a grasp
-    (:data:`skills.kinematic_world.GRASP_KINDS`; holding, the kind it holds with) by an arm of
-    :func:`skills.stacking.reach_arms` (the holding one, else the arm MoveBase chose and then
-    the other) of an object centred on the point of :func:`skills.stacking.reach_goal`. The
+    (:data:`skillcompose.skills.kinematic_world.GRASP_KINDS`; holding, the kind it holds with) by
+    an arm of
+    :func:`skillcompose.skills.stacking.reach_arms` (the holding one, else the arm MoveBase chose
+    and then
+    the other) of an object centred on the point of
+    :func:`skillcompose.skills.stacking.reach_goal`. The
     arms stay where they are."""
     goal = reach_goal(bb)
     if goal is None:

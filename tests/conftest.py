@@ -26,7 +26,7 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     import subprocess
     import sys
 
-    from evolve.ray_local import PRIVATE_NET, private_network
+    from skillcompose.evolve.ray_local import PRIVATE_NET, private_network
 
     if not private_network():
         pytest.skip("starts Ray, which listens on every interface: needs a private network "

@@ -196,7 +196,7 @@ def test_merge_from_takes_the_sections_the_other_run_measured(tmp_path: Path) ->
 
 
 def test_the_deterministic_preset_solves_the_maze_the_same_way_twice() -> None:
-    from evolve import PRESETS, EvolutionConfig, evolve
+    from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 
     task = load_task("benchmarks.tasks.maze")
     cfg = EvolutionConfig(**{**PRESETS["deterministic"], "generations": 40})

@@ -4,7 +4,7 @@ import dataclasses
 
 import pytest
 
-from evolve import SkillSet
+from skillcompose.evolve import SkillSet
 from skillcompose.task import Task, load_task
 
 

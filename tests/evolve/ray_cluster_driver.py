@@ -6,7 +6,7 @@ as one line of JSON.
 
 The task module is written into ``WORK_DIR/task`` (on this driver's import path only), so
 it and the skill it defines reach the workers through Ray's runtime environment alone.
-The cluster's tag (see evolve.ray_local) is written to ``WORK_DIR/tag`` as soon as the
+The cluster's tag (see skillcompose.evolve.ray_local) is written to ``WORK_DIR/tag`` as soon as the
 nodes start, for the test to stop whatever this script leaves behind.
 """
 
@@ -60,7 +60,7 @@ def main() -> None:
     sys.path.append(str(Path(__file__).resolve().parents[2]))  # the examples, for this driver
     os.chdir(work)
 
-    from evolve import (
+    from skillcompose.evolve import (
         EvolutionConfig,
         Job,
         RayEvaluator,
@@ -69,7 +69,7 @@ def main() -> None:
         evolve,
         initialize,
     )
-    from evolve.ray_local import local_cluster
+    from skillcompose.evolve.ray_local import local_cluster
     from skillcompose.task import load_task
 
     # the nodes: this interpreter without this environment's start-up files (which make

@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from evolve import channel
-from evolve.channel import JobServer, connect, messages
+from skillcompose.evolve import channel
+from skillcompose.evolve.channel import JobServer, connect, messages
 
 KEY = b"k" * 32
 

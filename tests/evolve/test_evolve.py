@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from evolve import (
+from skillcompose import Blackboard, compile_fsa, load_fsa
+from skillcompose.evolve import (
     PRESETS,
     EvolutionConfig,
     EvolutionError,
@@ -30,7 +31,6 @@ from evolve import (
     evolve,
     initialize,
 )
-from skillcompose import Blackboard, compile_fsa, load_fsa
 from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -96,7 +96,7 @@ def test_options_change_the_run_and_stay_reproducible() -> None:
 def _cli(args: list[str]) -> subprocess.Popen[str]:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.Popen(
-        [sys.executable, "-m", "evolve.cli", "evolve", *args], cwd=ROOT, env=env,
+        [sys.executable, "-m", "skillcompose.evolve.cli", "evolve", *args], cwd=ROOT, env=env,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
 
@@ -177,7 +177,7 @@ def test_resume_in_process_equals_an_uninterrupted_run(tmp_path: Path) -> None:
     _same_run(full, resumed)
     assert full.out_dir is not None and (full.out_dir / "best.png").exists()
     assert (full.out_dir / "fitness.png").stat().st_size > 1000
-    from evolve import CheckpointError
+    from skillcompose.evolve import CheckpointError
 
     with pytest.raises(CheckpointError, match="holds a run already"):
         evolve(task, cfg, seed=2, out_dir=tmp_path / "a")
@@ -189,7 +189,7 @@ def test_a_dead_worker_costs_its_evaluations_not_the_run() -> None:
     task = load_task("tests.evolve.crashy_task", p_fail=0.0)
     skills = SkillSet.from_task(task)
     s = skills.index
-    from evolve import Node
+    from skillcompose.evolve import Node
 
     good = Genome({0: Node(s["FindBlock"], [], [-1])}, 0)
     bad = Genome({0: Node(s["Crash"], [], [-1])}, 0)
@@ -222,7 +222,7 @@ def test_the_pool_survives_many_deaths_in_one_batch() -> None:
     task = load_task("tests.evolve.crashy_task", p_fail=0.0)
     skills = SkillSet.from_task(task)
     s = skills.index
-    from evolve import Node
+    from skillcompose.evolve import Node
 
     rng = np.random.default_rng(5)
     killers = {3, 4, 17, 40, 41, 42, 77, 98}
@@ -249,7 +249,7 @@ def test_the_pool_survives_many_deaths_in_one_batch() -> None:
             assert ev.evaluate(good) == [e for i, e in enumerate(expected) if i not in killers]
             assert ev.lost == 2 * len(killers)
 
-            import evolve.evaluation as evaluation
+            import skillcompose.evolve.evaluation as evaluation
 
             real_wait = evaluation.wait
 
@@ -296,7 +296,7 @@ def test_seed_fsa_enters_the_first_population() -> None:
 
 
 def test_config_errors_are_clear() -> None:
-    from evolve import EvolutionConfigError
+    from skillcompose.evolve import EvolutionConfigError
 
     with pytest.raises(EvolutionConfigError, match=r"p_mut = 1.5: expected a probability"):
         EvolutionConfig(p_mut=1.5)
@@ -364,7 +364,7 @@ def test_confirm_rate_asks_a_share_of_fresh_worlds_instead_of_their_mean() -> No
     strict = evolve(task, cfg.replace(confirm_rate=0.75, generations=60), seed=0,
                     simplify_result=False)
     assert not strict.solved and strict.generations == 60
-    from evolve import EvolutionConfigError
+    from skillcompose.evolve import EvolutionConfigError
 
     with pytest.raises(EvolutionConfigError, match=r"confirm_rate = 1\.5"):
         EvolutionConfig(confirm_rate=1.5)
@@ -375,7 +375,7 @@ def test_confirm_feedback_confirms_each_genome_once(monkeypatch: pytest.MonkeyPa
     best (it scores the target on its one trial seven times in ten) and is confirmed again
     and again; with confirm_feedback it takes the failed confirmation's fitness (in the
     population and the cache), so every confirmation is of another genome."""
-    from evolve import algorithm
+    from skillcompose.evolve import algorithm
 
     task = _luck_task()
     confirmed: list[tuple[object, ...]] = []
@@ -403,7 +403,7 @@ def test_confirm_candidates_confirms_several_genomes_a_generation_each_once(
     """On the luck task (no FSA passes: its share of the target is about 0.7), three
     candidates a generation are confirmed, each on worlds of its own, and a genome that
     failed is never confirmed again, in the same or a later generation."""
-    from evolve import EvolutionConfigError, algorithm
+    from skillcompose.evolve import EvolutionConfigError, algorithm
 
     task = _luck_task()
     confirmed: list[tuple[tuple[object, ...], tuple[int, ...]]] = []
@@ -430,7 +430,7 @@ def test_confirm_candidates_confirms_several_genomes_a_generation_each_once(
 
 
 def test_the_command_line_sets_confirm_feedback() -> None:
-    from evolve.cli import _config, build_parser
+    from skillcompose.evolve.cli import _config, build_parser
 
     args = build_parser().parse_args(["evolve", "examples.toy_task", "--confirm", "100",
                                       "--confirm-rate", "1", "--confirm-feedback",

@@ -15,10 +15,10 @@ from typing import Any, Literal
 import numpy as np
 import pytest
 
-from evolve import EvolutionConfig, Genome, Job, Node, SkillSet, evolve
-from evolve.evaluation import EvalLimits, Faults, ProcessEvaluator, SerialEvaluator
 from skillcompose import FSA, Blackboard, Registry, State, load_fsa, save_fsa, skill
 from skillcompose.cli import main as skillcompose_main
+from skillcompose.evolve import EvolutionConfig, Genome, Job, Node, SkillSet, evolve
+from skillcompose.evolve.evaluation import EvalLimits, Faults, ProcessEvaluator, SerialEvaluator
 from skillcompose.task import Task, load_task
 
 FAULTY = "tests.evolve.faulty_task"
@@ -240,7 +240,7 @@ def test_an_interrupted_batch_leaves_no_lock_held(monkeypatch: pytest.MonkeyPatc
     lock: the pool that follows must not wait on that lock for ever."""
     import multiprocessing
 
-    import evolve.evaluation as evaluation
+    import skillcompose.evolve.evaluation as evaluation
 
     task = load_task(FAULTY)
     jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"])
@@ -284,7 +284,7 @@ def test_a_worker_killed_claiming_a_chunk_costs_no_result(
     the batch run again, to the serial results, and one death is counted."""
     import signal
 
-    import evolve.evaluation as evaluation
+    import skillcompose.evolve.evaluation as evaluation
 
     task = load_task(FAULTY)
     jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"] * 4)
@@ -464,7 +464,7 @@ def test_leaking_workers_are_replaced_and_results_do_not_change() -> None:
 @pytest.mark.private_network  # starts Ray, which listens: see tests/conftest.py
 def test_ray_reruns_a_dead_actors_chunk_job_by_job() -> None:
     ray = pytest.importorskip("ray")
-    from evolve.evaluation import RayEvaluator
+    from skillcompose.evolve.evaluation import RayEvaluator
 
     crashy = load_task(FAULTY, fault="crash")
     hang = load_task(FAULTY, fault="hang")
@@ -503,7 +503,7 @@ def test_faults_add_up() -> None:
 
 
 def test_simplification_and_the_fresh_check_survive_sys_exit() -> None:
-    from evolve import check_fresh, simplify
+    from skillcompose.evolve import check_fresh, simplify
 
     task = load_task(FAULTY, fault="exit", p_fault=0.5)
     fsa = FSA({"F": State("FindBlock", {}, {"success": "X"}),
@@ -532,8 +532,8 @@ def test_faults_on_ray_equal_the_serial_run() -> None:
 
 
 def test_the_fresh_check_warning_suggests_only_what_the_run_did_not_use() -> None:
-    from evolve import PRESETS, EvolutionConfig
-    from evolve.cli import _hold_hint
+    from skillcompose.evolve import PRESETS, EvolutionConfig
+    from skillcompose.evolve.cli import _hold_hint
 
     task = load_task("examples.pour_water")
     paper = _hold_hint(EvolutionConfig(), task)

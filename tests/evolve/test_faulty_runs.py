@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from evolve import CheckpointError, EvolutionConfig, RunDir, evolve
 from skillcompose.cli import main as skillcompose_main
+from skillcompose.evolve import CheckpointError, EvolutionConfig, RunDir, evolve
 from skillcompose.task import Task, load_task
 
 FAULTY = "tests.evolve.faulty_task"

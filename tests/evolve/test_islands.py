@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from evolve import (
+from skillcompose.evolve import (
     PRESETS,
     EvolutionConfig,
     EvolutionConfigError,
@@ -15,7 +15,7 @@ from evolve import (
     RunDir,
     evolve,
 )
-from evolve.cli import _config, build_parser
+from skillcompose.evolve.cli import _config, build_parser
 from skillcompose.task import Task, load_task
 
 ISLANDS = EvolutionConfig(population=40, initial_nodes=8, generations=7, islands=4,
@@ -59,13 +59,13 @@ def test_an_interrupted_island_run_resumes_as_if_never_interrupted(tmp_path: Pat
 
 
 def test_migrants_arrive_every_interval_from_the_ring_neighbour() -> None:
-    from evolve.algorithm import _Run  # the breeding step, seen from inside
+    from skillcompose.evolve.algorithm import _Run  # the breeding step, seen from inside
 
     task = _task()
     cfg = EvolutionConfig(population=12, initial_nodes=6, islands=3, migrants=2,
                           migration_interval=1, topology="ring")
-    from evolve.genome import SkillSet
-    from evolve.operators import initialize
+    from skillcompose.evolve.genome import SkillSet
+    from skillcompose.evolve.operators import initialize
 
     skills = SkillSet.from_task(task)
     run = _Run(task, cfg, 0, skills, None, None, None, 1, {})
@@ -104,9 +104,9 @@ def test_unique_children_spend_evaluations_on_new_genomes() -> None:
 
 
 def test_neutral_elites_give_way_to_newer_genomes_of_equal_fitness() -> None:
-    from evolve.algorithm import _Run
-    from evolve.genome import SkillSet
-    from evolve.operators import initialize
+    from skillcompose.evolve.algorithm import _Run
+    from skillcompose.evolve.genome import SkillSet
+    from skillcompose.evolve.operators import initialize
 
     task = _task()
     skills = SkillSet.from_task(task)

@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evolve import (
+from skillcompose import Blackboard, compile_fsa
+from skillcompose.evolve import (
     EvolutionConfig,
     Genome,
     GenomeCompiler,
@@ -22,7 +23,6 @@ from evolve import (
     mutate,
     mutate_node,
 )
-from skillcompose import Blackboard, compile_fsa
 from skillcompose.task import Task
 
 seeds = st.integers(min_value=0, max_value=2**32 - 1)
@@ -129,7 +129,7 @@ def test_crossover_keeps_invariants(
 def test_crossover_swaps_subgraphs_and_rewires(toy: Task, toy_skills: SkillSet) -> None:
     """Two chains of distinct skills: a 1-node swap exchanges skills at the chosen places."""
     s = toy_skills.index
-    from evolve import Node
+    from skillcompose.evolve import Node
 
     g1 = Genome({0: Node(s["FindBlock"], [], [1]), 1: Node(s["PickBlock"], [], [-1, -2])}, 0)
     g2 = Genome({0: Node(s["Wait"], [0.5], [1]), 1: Node(s["PutDown"], [], [-1, -2])}, 0)
@@ -173,8 +173,8 @@ BAD_SEED = (  # an unknown skill in A, PickBlock's failure unrouted in B
 
 
 def test_seed_fsa_errors_name_the_state(toy_skills: SkillSet) -> None:
-    from evolve import SeedFSAError
     from skillcompose import loads_fsa
+    from skillcompose.evolve import SeedFSAError
 
     with pytest.raises(SeedFSAError) as err:
         Genome.from_fsa(loads_fsa(BAD_SEED, "bad.yaml"), toy_skills)
@@ -187,8 +187,8 @@ def test_a_seed_fsas_transition_on_an_outcome_its_skill_lacks_is_refused(
     toy_skills: SkillSet,
 ) -> None:
     """A typo'd outcome (``faliure``) would otherwise vanish from the evolved file."""
-    from evolve import SeedFSAError
     from skillcompose import loads_fsa
+    from skillcompose.evolve import SeedFSAError
 
     text = ("format: 1\nname: t\nstart: A\nterminals: [success, failure]\nstates:\n"
             "  A:\n    skill: PickBlock\n    transitions:\n      success: success\n"
@@ -206,8 +206,8 @@ def test_a_seed_fsas_timeout_transition_is_refused_as_validate_refuses_it(
 ) -> None:
     """validate accepts ``timeout:`` only for a skill that declares it; the seed check
     took it for any state with a time limit, and the edge vanished from the evolved file."""
-    from evolve import SeedFSAError
     from skillcompose import loads_fsa
+    from skillcompose.evolve import SeedFSAError
 
     text = ("format: 1\nname: t\nstart: A\nterminals: [success, failure]\nstates:\n"
             "  A:\n    skill: PickBlock\n    time_limit: 5\n    transitions:\n"
@@ -218,9 +218,9 @@ def test_a_seed_fsas_timeout_transition_is_refused_as_validate_refuses_it(
 
 
 def test_seed_fsa_errors_keep_one_problem_per_line(toy_skills: SkillSet) -> None:
-    from evolve import SeedFSAError
     from skillcompose import loads_fsa
     from skillcompose.errors import printable
+    from skillcompose.evolve import SeedFSAError
 
     with pytest.raises(SeedFSAError) as err:
         Genome.from_fsa(loads_fsa(BAD_SEED, "bad\n  seed\x1b.yaml"), toy_skills)
@@ -234,8 +234,8 @@ def test_seed_fsa_errors_keep_one_problem_per_line(toy_skills: SkillSet) -> None
 def test_seed_fsa_parameters_are_checked_as_the_model_checks_them(
     toy: Task, toy_skills: SkillSet
 ) -> None:
-    from evolve import SeedFSAError
     from skillcompose import FSAValidationError, loads_fsa
+    from skillcompose.evolve import SeedFSAError
 
     text = (
         "format: 1\nstart: A\nstates:\n  A:\n    skill: Carry\n"
@@ -314,7 +314,7 @@ def test_mutation_and_crossover_rechoose_a_start_left_without_a_way_on(
 
 
 def test_a_start_rewired_to_loop_on_itself_is_rechosen(toy_skills: SkillSet) -> None:
-    from evolve import Node, fix_start
+    from skillcompose.evolve import Node, fix_start
 
     s = toy_skills.index
     g = Genome({0: Node(s["FindBlock"], [], [0]), 1: Node(s["PickBlock"], [], [2, 1]),
@@ -329,7 +329,7 @@ def test_a_start_rewired_to_loop_on_itself_is_rechosen(toy_skills: SkillSet) -> 
 def test_a_node_mutation_that_strands_the_start_moves_it(toy_skills: SkillSet) -> None:
     """FindBlock -> PickBlock -> PutDown: re-routing the start's only edge onto itself used
     to leave a one-state genome after pruning; now the start moves to PickBlock."""
-    from evolve import Node
+    from skillcompose.evolve import Node
 
     s = toy_skills.index
     cfg = EvolutionConfig(p_mut=0.3, p_add=0.0, p_del=0.0)
@@ -386,8 +386,8 @@ def test_genomes_never_outgrow_what_an_fsa_file_holds() -> None:
 def test_a_run_of_huge_genomes_exports_a_file_that_loads(tmp_path: Path) -> None:
     """A run with 1500 initial nodes and p_add 1 exported a best.yaml of 969 states, which
     load_fsa refused."""
-    from evolve import EvolutionConfig, evolve
     from skillcompose import load_fsa
+    from skillcompose.evolve import EvolutionConfig, evolve
     from skillcompose.task import load_task
 
     task = load_task("examples.toy_task", p_fail=0.1)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from evolve.ray_local import PRIVATE_NET, private_network
+from skillcompose.evolve.ray_local import PRIVATE_NET, private_network
 
 pytestmark = [pytest.mark.slow, pytest.mark.ray]
 
@@ -25,7 +25,7 @@ def test_two_nodes_ship_the_code_share_the_work_and_survive_a_lost_node(
     pytest.importorskip("ray")
     if not private_network():
         pytest.skip("needs a private network namespace (unshare --net, as root)")
-    from evolve.ray_local import _tagged
+    from skillcompose.evolve.ray_local import _tagged
 
     try:
         done = subprocess.run([*PRIVATE_NET, sys.executable, str(DRIVER), str(tmp_path)],

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from evolve import CheckpointError, EvolutionConfig, EvolutionResult, RunDir, evolve
 from skillcompose import load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
+from skillcompose.evolve import CheckpointError, EvolutionConfig, EvolutionResult, RunDir, evolve
 from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -232,7 +232,7 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
 ) -> None:
     task = _task()
     full = evolve(task, CFG, seed=4, out_dir=tmp_path / "full", simplify_trials=20)
-    import evolve.algorithm as algorithm
+    import skillcompose.evolve.algorithm as algorithm
 
     def killed(*args: object, **kwargs: object) -> object:
         raise KeyboardInterrupt
@@ -251,7 +251,7 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
 def test_ctrl_c_says_how_to_continue_the_run(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import evolve.algorithm as algorithm
+    import skillcompose.evolve.algorithm as algorithm
 
     def interrupted(*args: object, **kwargs: object) -> object:
         raise KeyboardInterrupt
@@ -292,7 +292,7 @@ def test_two_processes_cannot_evolve_in_one_directory(
 ) -> None:
     d = tmp_path / "run"
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from evolve import RunDir; "
+        [sys.executable, "-c", "import sys, time; from skillcompose.evolve import RunDir; "
          "r = RunDir(sys.argv[1]); r.lock(); print('locked', flush=True); time.sleep(60)", str(d)],
         cwd=ROOT, stdout=subprocess.PIPE, text=True,
     )
@@ -330,7 +330,7 @@ def _alive(pid: int) -> bool:
 def test_no_worker_survives_a_kill_9_of_the_evolving_process(tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "evolve.cli", "evolve", *TOY, "--population", "200",
+        [sys.executable, "-m", "skillcompose.evolve.cli", "evolve", *TOY, "--population", "200",
          "--generations", "100000", "--backend", "process", "--workers", "2", "--quiet",
          "--out", str(tmp_path / "run")],
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,

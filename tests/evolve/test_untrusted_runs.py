@@ -16,8 +16,8 @@ from typing import Any
 
 import pytest
 
-from evolve import CheckpointError, RunDir
 from skillcompose.cli import main as skillcompose_main
+from skillcompose.evolve import CheckpointError, RunDir
 
 ARGS = ["examples.toy_task", "--set", "p_fail=0.3", "--population", "20", "--initial-nodes",
         "6", "--generations", "4", "--checkpoint-every", "2", "--seed", "1", "--quiet",
@@ -141,7 +141,7 @@ def test_a_task_module_reaching_inside_through_a_package_is_never_imported(
     afresh with the current directory on the path: refused, nothing imported."""
     import ruamel.yaml  # noqa: F401 - imported already, as in the command line's process
 
-    from evolve.resume import load_recorded_task
+    from skillcompose.evolve.resume import load_recorded_task
 
     marker = run_dir / "RAN"
     (run_dir / "ruamel").mkdir()

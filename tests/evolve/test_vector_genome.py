@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from evolve import (
+from skillcompose import compile_fsa, dumps_fsa, loads_fsa
+from skillcompose.evolve import (
     EvolutionConfig,
     Genome,
     GenomeCompiler,
@@ -20,7 +21,6 @@ from evolve import (
     mutate,
     mutate_genes,
 )
-from skillcompose import compile_fsa, dumps_fsa, loads_fsa
 from skillcompose.task import Task, load_task
 
 seeds = st.integers(min_value=0, max_value=2**32 - 1)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from evolve import EvolutionConfig, evolve
+from skillcompose.evolve import EvolutionConfig, evolve
 from skillcompose.robustness import robustness_sweep
 from skillcompose.task import load_task
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from robots.model import RobotModel, load_pr2
+from skillcompose.robots.model import RobotModel, load_pr2
 
 
 @pytest.fixture(scope="session")

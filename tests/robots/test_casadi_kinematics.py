@@ -3,8 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robots.casadi_kinematics import CasadiKinematics
-from robots.model import TOOL_FRAMES, RobotModel
+from skillcompose.robots.casadi_kinematics import CasadiKinematics
+from skillcompose.robots.model import TOOL_FRAMES, RobotModel
 
 pytestmark = pytest.mark.kinematics
 

@@ -3,11 +3,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robots.base_placement import BasePlacer, random_table_scene
-from robots.collision import Box, Scene, check_collisions
-from robots.ik import IKStatus, IKTarget
-from robots.model import RobotModel
-from robots.optimisation import OptimisedBasePlacer, solve_both_arms
+from skillcompose.robots.base_placement import BasePlacer, random_table_scene
+from skillcompose.robots.collision import Box, Scene, check_collisions
+from skillcompose.robots.ik import IKStatus, IKTarget
+from skillcompose.robots.model import RobotModel
+from skillcompose.robots.optimisation import OptimisedBasePlacer, solve_both_arms
 
 pytestmark = pytest.mark.kinematics
 

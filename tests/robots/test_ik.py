@@ -6,8 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robots.ik import IKResult, IKSolver, IKStatus, IKTarget, _find_mirrors, solve_ik
-from robots.model import RobotModel
+from skillcompose.robots.ik import IKResult, IKSolver, IKStatus, IKTarget, _find_mirrors, solve_ik
+from skillcompose.robots.model import RobotModel
 
 pytestmark = pytest.mark.kinematics
 

@@ -6,8 +6,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robots.errors import ChainNotFound, FrameNotFound, InvalidConfiguration, RobotDataNotFound
-from robots.model import (
+from skillcompose.robots.errors import (
+    ChainNotFound,
+    FrameNotFound,
+    InvalidConfiguration,
+    RobotDataNotFound,
+)
+from skillcompose.robots.model import (
     ARM_JOINTS,
     CHAIN_LAYOUT,
     TOOL_FRAMES,

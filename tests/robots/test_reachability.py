@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robots.errors import DatasetError
-from robots.model import RobotModel
-from robots.reachability import (
+from skillcompose.robots.errors import DatasetError
+from skillcompose.robots.model import RobotModel
+from skillcompose.robots.reachability import (
     SHOULDER_LEFT_M,
     SHOULDER_RIGHT_M,
     WRIST_BEHIND_TOOL_M,

@@ -10,9 +10,9 @@ import pinocchio as pin
 import pytest
 from matplotlib.image import imread
 
-from robots.collision import Box, Scene
-from robots.model import RobotModel, RobotPose
-from robots.render import (
+from skillcompose.robots.collision import Box, Scene
+from skillcompose.robots.model import RobotModel, RobotPose
+from skillcompose.robots.render import (
     MAX_FACES_PER_MESH,
     link_meshes,
     render_configuration,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from robots.cli import add_robot_cli, run_robot_cli
+from skillcompose.robots.cli import add_robot_cli, run_robot_cli
 
 pytestmark = pytest.mark.kinematics
 

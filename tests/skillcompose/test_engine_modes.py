@@ -12,8 +12,6 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from evolve import GenomeCompiler, SkillSet
-from evolve.operators import initialize
 from skillcompose import (
     FSA,
     RUNNING,
@@ -27,6 +25,8 @@ from skillcompose import (
     compile_fsa,
     skill,
 )
+from skillcompose.evolve import GenomeCompiler, SkillSet
+from skillcompose.evolve.operators import initialize
 from skillcompose.task import Task
 
 KEYS = {"x": float, "n": int}

@@ -92,7 +92,8 @@ def test_the_graph_sees_function_level_imports() -> None:
 
 
 @pytest.mark.parametrize(
-    "package", ["skillcompose", "evolve", pytest.param("robots", marks=pytest.mark.kinematics)]
+    "package", ["skillcompose", "skillcompose.evolve",
+                pytest.param("skillcompose.robots", marks=pytest.mark.kinematics)]
 )
 def test_the_lazy_name_table_equals_the_imports_the_type_checker_reads(package: str) -> None:
     """A package's ``__init__.py`` lists its public names twice: as imports only the type
@@ -116,8 +117,8 @@ def test_a_public_name_is_not_replaced_by_the_submodule_of_the_same_name() -> No
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
     assert done.stdout.strip() == "True"
-    code = ("import evolve, evolve.simplify, types;"
-            "print(isinstance(evolve.simplify, types.FunctionType))")
+    code = ("import skillcompose.evolve, skillcompose.evolve.simplify, types;"
+            "print(isinstance(skillcompose.evolve.simplify, types.FunctionType))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
     assert done.stdout.strip() == "True"

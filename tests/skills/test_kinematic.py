@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from examples.pour_water import fitness, setup
-from robots import IKSolver, IKTarget, load_pr2
-from robots.collision import Box
-from robots.reachability import ReachabilityOracle
 from skillcompose import Blackboard, Registry, compile_fsa, load_fsa
-from skills import kinematic as kn
-from skills import kinematic_world as kw
-from skills import pour_water as pw
+from skillcompose.robots import IKSolver, IKTarget, load_pr2
+from skillcompose.robots.collision import Box
+from skillcompose.robots.reachability import ReachabilityOracle
+from skillcompose.skills import kinematic as kn
+from skillcompose.skills import kinematic_world as kw
+from skillcompose.skills import pour_water as pw
 
 pytestmark = pytest.mark.kinematics
 
@@ -43,7 +43,7 @@ def test_twin_has_the_abstract_skills_signature(sim: object) -> None:
 def test_register_beside_the_abstract_skills() -> None:
     registry = Registry()
     pw.register(registry)
-    added = registry.load_module("skills.kinematic")
+    added = registry.load_module("skillcompose.skills.kinematic")
     assert {s.name for s in added} == {s.name for s in kn.SKILLS}
     for s in pw.SKILLS:
         assert sorted(registry.backends(s.name)) == ["kinematic", "sim"]

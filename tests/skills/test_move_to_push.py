@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robots.collision import Box
 from skillcompose import FSA, Blackboard, Registry, State, compile_fsa, load_task
-from skills.move_to_push import (
+from skillcompose.robots.collision import Box
+from skillcompose.skills.move_to_push import (
     BASE_STEP_M,
     TORSO_RANGE_M,
     base_hits_table,
@@ -216,7 +216,7 @@ def test_the_evolved_file_runs_on_both_backends_from_the_command_line() -> None:
 
 @pytest.mark.slow
 def test_a_short_evolution_improves_the_push() -> None:
-    from evolve import PRESETS, EvolutionConfig, evolve
+    from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 
     task = load_task("examples.move_to_push", trials=5)
     cfg = EvolutionConfig(**{**PRESETS["push"], "population": 60, "generations": 30,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skills.network import (
+from skillcompose.skills.network import (
     N_INPUTS,
     N_OUTPUTS,
     TOPOLOGIES,

@@ -9,7 +9,7 @@ import pytest
 
 from examples.pour_water import GLASS_RIM_WORLD, GRIPPER_HOME_WORLD, JUG_SPOUT_WORLD, setup
 from skillcompose import Blackboard, BlackboardAccessError, BlackboardKeyError, Registry, Skill
-from skills import pour_water as pw
+from skillcompose.skills import pour_water as pw
 
 N = 20_000  # calls per probability estimate: 4 standard errors at p = 0.2 are ±0.011
 

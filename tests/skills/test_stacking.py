@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from examples import stacking as task_module
-from robots.collision import Box
 from skillcompose import Blackboard, compile_fsa, load_fsa, loads_fsa
 from skillcompose.executor import trial_rngs
+from skillcompose.robots.collision import Box
+from skillcompose.skills import stacking as st
 from skillcompose.task import load_task
-from skills import stacking as st
 
 EXAMPLES = Path(task_module.__file__).parent
 FIRST, SECOND = (0.6, -0.2, 0.81), (0.6, -0.1, 0.81)  # the classifier: right arm for both
@@ -352,7 +352,7 @@ def test_move_to_reach_goes_for_the_object_grasp_param_last_tried() -> None:
 # -- evolution ------------------------------------------------------------------------------
 @pytest.mark.slow
 def test_short_evolution_improves_fitness() -> None:
-    from evolve import PRESETS, EvolutionConfig, evolve
+    from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 
     task = load_task("examples.stacking")
     cfg = EvolutionConfig(**{**PRESETS["robust"], "population": 80, "generations": 12,

@@ -9,10 +9,10 @@ import pytest
 
 from examples import stacking as task_module
 from skillcompose import compile_fsa, load_fsa
+from skillcompose.skills import kinematic as kin
+from skillcompose.skills import stacking as st
+from skillcompose.skills import stacking_kinematic as stk
 from skillcompose.task import load_task
-from skills import kinematic as kin
-from skills import stacking as st
-from skills import stacking_kinematic as stk
 from tests.skills.test_stacking import FIRST, SECOND, recognised, world
 
 pytestmark = pytest.mark.kinematics
@@ -45,7 +45,7 @@ def test_grasp_stack_open_on_the_pr2() -> None:
 
 
 def test_a_side_grasp_holds_the_object_upright_to_the_end() -> None:
-    from skills.kinematic_world import GRASP_KEY, SIDE_GRASP_RISE_M
+    from skillcompose.skills.kinematic_world import GRASP_KEY, SIDE_GRASP_RISE_M
 
     far_first, far_second = (0.85, -0.2, 0.81), (0.85, -0.05, 0.81)  # beyond a grasp from above
     bb = recognised(object_positions_world={"box": far_first, "bottle": far_second})
@@ -93,7 +93,7 @@ def test_reference_fsa_stacks_on_the_pr2() -> None:
 
 
 def test_replay_writes_a_frame_per_step(tmp_path: Path) -> None:
-    from skills.replay import main
+    from skillcompose.skills.replay import main
 
     assert main([str(EXAMPLES / "stacking_reference.fsa.yaml"), "--task",
                  "examples.stacking", "--set", "backend=kinematic", "--seed", "4",

@@ -13,13 +13,13 @@ from pathlib import Path
 
 import pytest
 
-from evolve.rundir import RunDir
 from examples import live_patrol
 from skillcompose import FSA, load_fsa
 from skillcompose.cli import main
-from skillcompose_view.data import find_runs, mermaid, read_fsa, read_history, read_run
-from skillcompose_view.episode import run_episode
-from skillcompose_view.live import LivePublisher, read_live
+from skillcompose.evolve.rundir import RunDir
+from skillcompose.view.data import find_runs, mermaid, read_fsa, read_history, read_run
+from skillcompose.view.episode import run_episode
+from skillcompose.view.live import LivePublisher, read_live
 
 from .conftest import REPO, child_env
 
@@ -159,7 +159,7 @@ def test_view_usage_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFi
 def test_core_does_not_import_the_viewer() -> None:
     code = ("import sys, skillcompose, skillcompose.cli; skillcompose.cli.build_parser(); "
             "print(sorted(m for m in sys.modules if m.startswith(('nicegui', "
-            "'skillcompose_view.app'))))")
+            "'skillcompose.view.app'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env=child_env()).stdout
     assert out.strip() == "[]"
@@ -187,7 +187,7 @@ def test_pipes_in_the_folder_viewed_never_hang_the_viewer(tmp_path: Path) -> Non
     would wait for a writer for ever) is reported as unreadable at once."""
     import signal
 
-    from skillcompose_view.live import read_live
+    from skillcompose.view.live import read_live
 
     run = tmp_path / "odd"
     run.mkdir()

@@ -3,7 +3,7 @@
 Pages: ``/`` runs (table and fitness chart, updated live), ``/fsa`` an FSA file (graph,
 states, YAML with its problems at their lines), ``/replay`` one episode stepped forward and
 back (graph, blackboard, changes, the PR2 in 3D on a kinematic task), ``/live`` the FSAs a
-program publishes as they run (:mod:`skillcompose_view.live`). Every script, style and mesh
+program publishes as they run (:mod:`skillcompose.view.live`). Every script, style and mesh
 is served by this process: NiceGUI ships Vue, Quasar, ECharts, Mermaid and three.js, and the
 PR2's meshes come from ``example-robot-data``.
 
@@ -647,7 +647,7 @@ def _live_page(config: ViewerConfig) -> None:
     ui.label(f"FSAs publishing their state under {_shown(config, config.root)} "
              f"(files *{LIVE_SUFFIX})") \
         .classes("text-xl font-semibold")
-    ui.label("A program publishes with skillcompose_view.live.LivePublisher; try "
+    ui.label("A program publishes with skillcompose.view.live.LivePublisher; try "
              "python -m examples.live_patrol --out DIR.").classes("text-sm text-slate-500")
     holder = ui.column().classes("w-full gap-4")
     cards: dict[Path, dict[str, Any]] = {}

@@ -2,7 +2,7 @@
 
 ::
 
-    python -m skillcompose_view.screenshots --out docs/viewer
+    python -m skillcompose.view.screenshots --out docs/viewer
 
 makes a folder with two short evolutions of the toy task, starts the viewer on it, runs the
 live patrol example, and has a headless Chromium (Debian's ``chromium``, driven by
@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from urllib.parse import urlencode
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _free_port() -> int:
@@ -148,7 +148,7 @@ def shoot(out: Path, chromium: str) -> list[Path]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m skillcompose_view.screenshots",
+    p = argparse.ArgumentParser(prog="python -m skillcompose.view.screenshots",
                                 description=__doc__.split("\n")[0])
     p.add_argument("--out", type=Path, default=REPO / "docs" / "viewer",
                    help="folder for the PNG files (default docs/viewer)")

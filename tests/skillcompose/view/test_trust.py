@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from skillcompose_view.app import ViewerConfig, request_refusal, task_refusal
+from skillcompose.view.app import ViewerConfig, request_refusal, task_refusal
 
 from .conftest import REPO, start_viewer
 

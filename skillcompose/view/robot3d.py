@@ -2,8 +2,9 @@
 
 Pinocchio reads the visual geometry of ``example-robot-data``'s PR2 URDF (its STL meshes,
 boxes and a cylinder); :func:`frame` places every piece for the robot pose a kinematic
-blackboard holds (:func:`skills.replay.robot_pose`) and lists the table, obstacles and
-objects (:func:`skills.replay.world_scene`). The browser loads the meshes themselves from
+blackboard holds (:func:`skillcompose.skills.replay.robot_pose`) and lists the table, obstacles and
+objects (:func:`skillcompose.skills.replay.world_scene`). The browser loads the meshes themselves
+from
 :func:`mesh_root`, served by the viewer. Importing this module loads Pinocchio.
 """
 
@@ -17,9 +18,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from robots.model import load_pr2
 from skillcompose import Blackboard
-from skills.replay import robot_pose, world_scene
+from skillcompose.robots.model import load_pr2
+from skillcompose.skills.replay import robot_pose, world_scene
 
 __all__ = ["Piece", "WorldBox", "frame", "mesh_root", "pieces"]
 

@@ -23,7 +23,7 @@ import pytest
 from examples.live_patrol import dock, drive_to_next, patrol_fsa, scan_room
 from skillcompose import Blackboard, Registry, load_fsa, load_task
 from skillcompose.executor import compile_fsa
-from skillcompose_view.live import LivePublisher
+from skillcompose.view.live import LivePublisher
 
 from .conftest import REPO, Page, Viewer, append_generation, start_viewer, wait_for
 
@@ -297,7 +297,7 @@ def test_view_of_one_file_with_its_task(runs_dir: Path, page: Page,
 @pytest.mark.kinematics
 def test_replay_shows_the_pr2_with_its_meshes(viewer: Viewer, runs_dir: Path,
                                               page: Page) -> None:
-    from skillcompose_view.robot3d import pieces
+    from skillcompose.view.robot3d import pieces
 
     meshes = {p.mesh for p in pieces() if p.kind == "mesh"}
     loaded: set[str] = set()

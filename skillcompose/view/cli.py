@@ -26,7 +26,7 @@ Start a local web app that shows runs, FSA files, replays and live FSAs:
           start, terminals, unreachable and trap states) beside its YAML and its problems
   Replay  one episode (task, settings, seed) stepped forward and back; the PR2 in 3D on a
           kinematic task
-  Live    FSAs that publish their state as they run (skillcompose_view.live)
+  Live    FSAs that publish their state as they run (skillcompose.view.live)
 
 It listens on 127.0.0.1 unless --host says otherwise; Ctrl-C stops it.
 """

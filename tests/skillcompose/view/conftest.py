@@ -23,9 +23,9 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from evolve.rundir import RunDir
+from skillcompose.evolve.rundir import RunDir
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 START_TIMEOUT_S = 40.0
 
