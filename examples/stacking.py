@@ -70,6 +70,9 @@ Decisions where section 4.3 is vague (kept by the skills and by this task):
   their centres would make two objects touching side by side (6 cm) score better than one
   held right on top of the other (12 cm), a trap that evolution fell into.
 - Solved: every trial of an evaluation stacked (a mean of 0, ``target``), as in the paper.
+  An FSA *holds* on this task when it stacks in at least 90 % of worlds
+  (``Task.success_rate``; the paper's real robot stacked 20 of 20, too few to tell 90 %
+  from 100 %).
   Evolution may confirm it on fresh worlds by their share stacked (``--confirm 1000
   --confirm-rate 0.92``, the reproduction's): their mean cannot be asked to be 0, because
   the evolved MoveToReach does not bring every object into reach (even the hand-written
@@ -362,4 +365,5 @@ def make_task(
                 "OpenGripper", "CheckSuccess"),
         settings=settings,
         terminal_skills=("CheckSuccess",),
+        success_rate=0.9,
     )

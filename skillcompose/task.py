@@ -159,6 +159,10 @@ class Task:
     - ``deterministic``: the world and the skills draw nothing at random, so every episode
       of an FSA is the same: evolution then runs one trial per evaluation and one per
       simplification test and check, whatever ``trials`` says.
+    - ``success_rate``: the share of episodes at the target an FSA must reach to count as
+      holding on this task (default 0.95): evolution's "solved" (every preset but
+      ``paper``) asks that the one-sided 95 % lower confidence bound of that share, on
+      fresh episodes, is at least this (see :mod:`skillcompose.stats`).
     """
 
     name: str
@@ -176,6 +180,7 @@ class Task:
     terminal_skills: tuple[str, ...] | None = None
     terminals: tuple[str, ...] = DEFAULT_TERMINALS
     deterministic: bool = False
+    success_rate: float = 0.95
     ref: TaskRef | None = None
 
     def __post_init__(self) -> None:
@@ -215,6 +220,12 @@ class Task:
         if isinstance(self.target, bool) or not isinstance(self.target, numbers.Real) or \
                 self.target != self.target:  # NaN (and no float() of a huge whole number)
             raise TaskError(f"{me}: target = {clip(repr(self.target), 40)}: expected a number")
+        rate = self.success_rate
+        if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or \
+                not 0.0 < float(rate) < 1.0:
+            raise TaskError(f"{me}: success_rate = {clip(repr(rate), 40)}: expected a rate "
+                            "between 0 and 1 (exclusive), e.g. 0.95")
+        object.__setattr__(self, "success_rate", float(rate))
         if not callable(self.setup) or not callable(self.fitness):
             which = "setup" if not callable(self.setup) else "fitness"
             raise TaskError(f"{me}: {which} = {clip(repr(getattr(self, which)), 40)}: "
