@@ -93,6 +93,11 @@ CONFIGS: dict[str, dict[str, Any]] = {
 deterministic tasks, where a genome's fitness never changes) and the preset for deterministic
 tasks; between them, what each mechanism adds on its own."""
 
+# docs/results/search.md was measured with "solved" as an evaluation at the target (and its
+# confirmation), before the presets asked the exported FSA to hold; the same here, so that
+# the report stays what this script writes (docs/results/solved.md measures the new one)
+CONFIGS = {name: {**settings, "require_holds": False} for name, settings in CONFIGS.items()}
+
 DETERMINISTIC = ("paper", "robust", "robust + cache", "robust + cache + unique",
                  "islands + cache", "deterministic")
 NEW = ("islands + cache", "deterministic", "deterministic + neutral")

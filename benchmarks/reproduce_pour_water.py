@@ -42,7 +42,7 @@ PAPER_STATES = 7
 PAPER = EvolutionConfig()  # table 1: N=300, p_mut=0.1, p_cross=0.1, p_add=0.2, p_del=0.01, S=50
 """The paper's settings; one episode per evaluation (task default trials=1)."""
 
-OURS = EvolutionConfig(**PRESETS["robust"])
+OURS = EvolutionConfig(**{**PRESETS["robust"], "require_holds": False})
 """Our best options (``skillcompose evolve --preset robust``): 600 individuals, 3 episodes
 per evaluation that a whole generation shares (common random numbers), the two best kept,
 tournaments of 3, initial FSAs of 12 nodes, parameter noise 0.1, and a solution confirmed on

@@ -21,9 +21,11 @@ if TYPE_CHECKING:
     from .algorithm import EvolutionResult as EvolutionResult
     from .algorithm import GenerationRecord as GenerationRecord
     from .algorithm import check_fresh as check_fresh
+    from .algorithm import describe_fresh as describe_fresh
     from .algorithm import evolve as evolve
     from .config import PRESETS as PRESETS
     from .config import EvolutionConfig as EvolutionConfig
+    from .config import preset_settings as preset_settings
     from .errors import CheckpointError as CheckpointError
     from .errors import EvolutionConfigError as EvolutionConfigError
     from .errors import EvolutionError as EvolutionError
@@ -66,8 +68,8 @@ else:
     # ``skillcompose.evolve.simplify``
     # when that is imported.
     _EXPORTS = {
-        "algorithm": "EvolutionResult GenerationRecord check_fresh evolve",
-        "config": "PRESETS EvolutionConfig",
+        "algorithm": "EvolutionResult GenerationRecord check_fresh describe_fresh evolve",
+        "config": "PRESETS EvolutionConfig preset_settings",
         "errors": "CheckpointError EvolutionConfigError EvolutionError SeedFSAError",
         "evaluation": ("BACKENDS EvalLimits Faults Job ProcessEvaluator RayEvaluator "
                        "SerialEvaluator evaluate_genome make_evaluator"),

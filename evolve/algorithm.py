@@ -37,20 +37,19 @@ from skillcompose.arguments import MAX_WORKERS
 from skillcompose.fsafile import in_layout_of
 from skillcompose.task import Task
 
-from .config import EvolutionConfig
+from .config import DEFAULT_PRESET, EvolutionConfig, preset_settings
 from .errors import CheckpointError, EvolutionError
 from .evaluation import (
     BACKENDS,
-    TIMED_OUT,
     EvalLimits,
     Faults,
     Guard,
     Job,
-    evaluate_episodes,
     evaluate_job,
     make_evaluator,
 )
 from .genome import Genome, GenomeCompiler, SkillSet
+from .holds import FreshCheck, holds_test, measure_fresh, required_rate
 from .operators import crossover, initialize, mutate
 from .resume import (
     FREE_SETTINGS,
@@ -64,7 +63,7 @@ from .resume import (
 from .rundir import RunDir
 from .simplify import simplify
 
-__all__ = ["EvolutionResult", "GenerationRecord", "check_fresh", "evolve"]
+__all__ = ["EvolutionResult", "GenerationRecord", "check_fresh", "describe_fresh", "evolve"]
 
 _RETRIES = 8  # at most this many extra mutations make a duplicate child new
 _PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
@@ -72,6 +71,7 @@ _BREED = 0
 _EVAL = 1
 _CONFIRM = 2
 _FRESH = 3
+_HOLDS_CANDIDATES = 3  # genomes at the target whose FSA is tested for holding, a generation
 
 
 @dataclass(frozen=True)
@@ -115,6 +115,9 @@ class EvolutionResult:
     run_command: str = ""  # a command line that runs the exported FSA on its task
     faults: Faults = field(default_factory=Faults)  # over the whole run
     fresh: dict[str, Any] = field(default_factory=dict)  # see check_fresh (empty: not run)
+    # "holds": solved means the exported FSA held on fresh episodes (``fresh``, kind
+    # "holds"); "evaluation": solved when an evaluation reached the target (the paper)
+    solved_by: str = "evaluation"
 
     def _repr_html_(self) -> str:
         """In a notebook: the summary, the fitness per generation and the best FSA."""
@@ -132,8 +135,10 @@ class EvolutionResult:
             ("seed", self.seed),
         ]
         if self.fresh:
-            rows.append(("fresh episodes", f"{100 * self.fresh['success_rate']:.1f} % of "
-                                           f"{self.fresh['episodes']} reach the target"))
+            rows.append(("fresh episodes", describe_fresh(self.fresh)))
+            rows.append(("solved means", "it holds on fresh episodes"
+                         if self.solved_by == "holds" else
+                         "an evaluation reached the target (the paper's criterion)"))
         if self.faults.total:
             rows.append(("faults", self.faults.describe()))
         if self.out_dir is not None:
@@ -226,6 +231,11 @@ class _Run:
         self.cache: dict[tuple[Any, ...], tuple[float, int]] = {}
         # confirm_candidates: genomes that failed a confirmation, and its mean
         self.confirm_failed: dict[tuple[Any, ...], float] = {}
+        # require_holds: genomes whose FSA did not hold, with the mean of those episodes, and
+        # the one that held (its key, the generation, and the check of its exported FSA)
+        self.holds_failed: dict[tuple[Any, ...], float] = {}
+        self.holds_passed: dict[str, Any] | None = None
+        self.export: Callable[[FSA], FSA] = lambda fsa: fsa  # what the run would write
         self.evaluations = 0
         self.wall_before = 0.0
         self.next_uid = 0
@@ -257,6 +267,8 @@ class _Run:
             "history": [r.to_dict() for r in self.history],
             "cache": [[list(k), total, count] for k, (total, count) in self.cache.items()],
             "confirm_failed": [[list(k), mean] for k, mean in self.confirm_failed.items()],
+            "holds_failed": [[list(k), mean] for k, mean in self.holds_failed.items()],
+            "holds_passed": self.holds_passed,
             "evaluations": self.evaluations,
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
@@ -293,6 +305,14 @@ class _Run:
             self.confirm_failed = {
                 _tuples(k): _number(mean) for k, mean in st.get("confirm_failed", [])
             }
+            self.holds_failed = {
+                _tuples(k): _number(mean) for k, mean in st.get("holds_failed", [])
+            }
+            passed = st.get("holds_passed")
+            if passed is not None and not (isinstance(passed, dict)
+                                           and isinstance(passed.get("fresh"), dict)):
+                raise TypeError("holds_passed is not an object with its fresh check")
+            self.holds_passed = passed
             self.evaluations = _whole(st["evaluations"])
             self.wall_before = _number(st["wall_time"])
             self.next_uid = _whole(st["next_uid"])
@@ -658,6 +678,60 @@ class _Run:
             self.best = (g, self.confirm_failed.get(g.key(), task.worst), gen)
         return False
 
+    def holds(self, fitness: list[float]) -> bool:
+        """``require_holds``: test the genomes at the target (the run's best first, then the
+        population's by rank), skipping those that failed before, up to
+        ``_HOLDS_CANDIDATES`` a generation, until one holds; it becomes the best. A genome
+        that fails is demoted to the mean of its test's episodes and never tested again."""
+        assert self.best is not None
+        task = self.task
+        sizes = [len(x) for x in self.population]
+        order = sorted((i for i, f in enumerate(fitness) if task.solved(f)),
+                       key=lambda i: (*self.rank_key(fitness[i], sizes[i]), i))
+        candidates = [self.best] + [(self.population[i], fitness[i], self.generation)
+                                    for i in order]
+        tried: set[tuple[Any, ...]] = set()
+        for g, f, gen in candidates:
+            key = g.key()
+            if not task.solved(f) or key in tried or key in self.holds_failed:
+                continue
+            if len(tried) == _HOLDS_CANDIDATES:
+                break
+            check = self.holds_check(g, len(tried))
+            tried.add(key)
+            if check.passed:
+                self.best = (g.copy(), f, gen)
+                self.holds_passed = {"generation": self.generation,
+                                     "fresh": check.to_dict()}
+                return True
+            self.holds_failed[key] = check.mean_fitness
+            self.demote(g, fitness, f, check.mean_fitness, check.episodes)
+        g, _, gen = self.best
+        if g.key() in self.holds_failed:  # not taken for solved, by resume either
+            self.best = (g, self.holds_failed[g.key()], gen)
+        return False
+
+    def holds_check(self, g: Genome, k: int) -> FreshCheck:
+        """Whether ``g`` holds: its FSA as evolved first (an FSA far below the bar fails in
+        a few episodes), then, if it held, the FSA the run would export, on other worlds:
+        that second check is the statement."""
+        cfg = self.cfg
+
+        def test(fsa: FSA, stream: int) -> FreshCheck:
+            return holds_test(self.task, fsa, self.seed, (self.generation, stream),
+                              required_rate(self.task, cfg), confidence=cfg.holds_confidence,
+                              max_episodes=cfg.holds_max_episodes,
+                              time_limit=cfg.eval_time_limit)
+
+        evolved = self.compiler.fsa(g, name=f"{self.task.name}_evolved")
+        first = test(evolved, 2 * k)
+        self.evaluations += first.episodes
+        if not first.passed:
+            return first
+        second = test(self.export(evolved), 2 * k + 1)
+        self.evaluations += second.episodes
+        return second
+
     def demote(self, g: Genome, fitness: list[float], evaluated: float, mean: float,
                trials: int) -> None:
         """Fold a failed confirmation (``mean`` over ``trials``) into the fitness of ``g``
@@ -836,30 +910,36 @@ _FAULT_FIELDS = frozenset(Faults().to_dict())
 
 
 def check_fresh(
-    task: Task, fsa: FSA, seed: int, trials: int, time_limit: float | None = None
+    task: Task, fsa: FSA, seed: int, trials: int, time_limit: float | None = None,
+    required: float | None = None, confidence: float = 0.95,
 ) -> dict[str, Any]:
     """How ``fsa`` does on ``trials`` fresh episodes (worlds from ``SeedSequence(seed,
     spawn_key=(3,))``, never seen during evolution or simplification): the share that
-    reach the task's target, the mean fitness, and the episodes that raised or ran past
-    ``time_limit`` [s] (each scores worst)."""
-    compiled = task.compile(fsa)
-    scores: list[float] = []
-    raised = timeouts = 0
+    reach the task's target (``success_rate``) with its one-sided bounds at ``confidence``
+    (``lower``, ``upper``; Clopper–Pearson), whether the lower one reaches ``required``
+    (``holds``, None when no rate is required), the mean fitness, and the episodes that
+    raised or ran past ``time_limit`` [s] (each scores worst)."""
     seq = np.random.SeedSequence(seed, spawn_key=(_FRESH,))
-    with Guard(time_limit) as guard:
-        for f, code in evaluate_episodes(task, compiled, seq, trials, guard):
-            raised += code >> 2
-            timeouts += code & TIMED_OUT
-            scores.append(f)
-    n = len(scores)
-    return {
-        "episodes": n,
-        "success_rate": sum(map(task.solved, scores)) / n if n else 0.0,
-        "mean_fitness": float(statistics.fmean(scores)) if n else math.nan,
-        "raised": raised,
-        "timeouts": timeouts,
-        "seed": seed,
-    }
+    return measure_fresh(task, fsa, seq, trials, seed, required=required,
+                         confidence=confidence, time_limit=time_limit).to_dict()
+
+
+def describe_fresh(fresh: Mapping[str, Any]) -> str:
+    """One line for a fresh check of ``run.json`` or a result: the rate, its bounds and,
+    when a rate was required, whether it holds (older runs: the rate alone)."""
+    rate, episodes = fresh.get("success_rate"), fresh.get("episodes")
+    if not isinstance(rate, (int, float)) or not isinstance(episodes, int):
+        return "not measured"
+    text = f"{100 * rate:.1f} % of {episodes:,} fresh episodes reach the target"
+    lower, upper = fresh.get("lower"), fresh.get("upper")
+    if isinstance(lower, (int, float)) and isinstance(upper, (int, float)):
+        conf = fresh.get("confidence", 0.95)
+        text += f" ({100 * conf:g} % bounds {100 * lower:.1f}–{100 * upper:.1f} %)"
+    required, holds = fresh.get("required_rate"), fresh.get("holds")
+    if isinstance(required, (int, float)) and isinstance(holds, bool):
+        text += (f"; holds at the required {100 * required:g} %" if holds else
+                 f"; does not hold at the required {100 * required:g} %")
+    return text
 
 
 def fresh_differs(task: Task, evolved: float, fresh: float) -> bool:
@@ -890,17 +970,20 @@ def evolve(
 ) -> EvolutionResult:
     """Evolve an FSA for ``task`` (algorithm 1), stopping when solved or out of generations.
 
+    - ``cfg``: the settings (default: the ``default`` preset for this task,
+      :func:`~skillcompose.evolve.config.preset_settings`: solved means the exported FSA
+      holds on fresh episodes at the task's ``success_rate``; ``EvolutionConfig()`` is the
+      paper's table 1, solved on one evaluation).
     - ``seed``: the run's seed (``None`` draws one, recorded in the result and files).
     - ``backend``: ``"serial"``, ``"process"`` (``workers`` processes, default all cores) or
       ``"ray"`` (``workers`` actors, default one per CPU of the cluster); the result does not
       depend on it.
     - ``out_dir``: write the run directory (see :mod:`skillcompose.evolve.rundir`) as the run goes.
     - ``resume``: a run directory to continue from its last checkpoint (see
-      :mod:`skillcompose.evolve.resume`). ``task`` must be the run's task; the seed, the settings,
-      the
-      simplification and the fresh-episode check are the run's. ``cfg``, when given, may
-      differ from the run's only in ``generations`` (to extend a run: the result is the run
-      an uninterrupted run to that budget would have given), ``checkpoint_every``,
+      :mod:`skillcompose.evolve.resume`). ``task`` must be the run's task; the seed, the
+      settings, the simplification and the fresh-episode check are the run's. ``cfg``, when
+      given, may differ from the run's only in ``generations`` (to extend a run: the result
+      is the run an uninterrupted run to that budget would have given), ``checkpoint_every``,
       ``chunks_per_worker``, ``worker_max_jobs`` and ``worker_max_growth_mb``. A finished
       run is not touched (``result.unchanged``), but for its exported FSAs, written again
       when they were deleted.
@@ -909,7 +992,8 @@ def evolve(
     - ``simplify_result``: simplify the best FSA at the end (default on) with
       ``simplify_trials`` fresh trials (default 200; see :func:`skillcompose.evolve.simplify`).
     - ``check_trials``: fresh episodes on which the exported FSA is measured at the end
-      (default 200; :func:`check_fresh`; ``result.fresh``, ``run.json``); 0 skips it. A
+      (default 200; :func:`check_fresh`; ``result.fresh``, ``run.json``), unless the run was
+      solved by its holds test, whose episodes are then the measure; 0 skips it. A
       deterministic task (``Task.deterministic``) uses one trial for evaluations,
       simplification and this check.
     - ``progress``: progress on stderr (or on the given stream): a live line on a
@@ -1040,7 +1124,8 @@ def _evolve(
     simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
     on_generation: Callable[[GenerationRecord], None] | None,
 ) -> EvolutionResult:
-    cfg = cfg or EvolutionConfig()
+    if cfg is None:  # the honest default: "solved" means the exported FSA holds
+        cfg = EvolutionConfig(**preset_settings(DEFAULT_PRESET, task.deterministic))
     simplify_result = True if simplify_result is None else simplify_result
     simplify_trials = 200 if simplify_trials is None else simplify_trials
     if isinstance(simplify_trials, bool) or not isinstance(simplify_trials, int) or \
@@ -1102,6 +1187,16 @@ def _evolve(
     if rundir is not None and checkpoint is None:
         rundir.create(info)
     run = _Run(task, cfg, seed, skills, None, rundir, stream, trials, record)
+
+    def export(fsa: FSA) -> FSA:
+        """The FSA the run writes for ``fsa``: simplified (unless asked not to)."""
+        if not simplify_result:
+            return fsa
+        out = simplify(task, fsa, seed=seed, trials=simplify_used,
+                       time_limit=cfg.eval_time_limit)
+        return out.replace(meta={**fsa.meta, **out.meta}, name=fsa.name)
+
+    run.export = export
     if seed_source is not None and seed_genome is not None:
         run.seed_names = _SeedNames(seed_source, seed_genome, run.compiler)
     fitness: list[float] | None = None
@@ -1164,6 +1259,8 @@ def _evolve(
                 solved = task.solved(run.best[1])
                 if solved and cfg.confirm_trials:
                     solved = run.confirm(fitness)
+                if solved and cfg.require_holds and not run.faults().lost:
+                    solved = run.holds(fitness)
         finally:
             run.evaluator.close()
             run.close_progress()
@@ -1183,13 +1280,20 @@ def _evolve(
               "process, are skipped; best.yaml is the evolved FSA", file=sys.stderr)
         simplify_result, check_used = False, 0
     if simplify_result:
-        best = simplify(task, evolved, seed=seed, trials=simplify_used,
-                        time_limit=cfg.eval_time_limit)
-        best = best.replace(meta={**evolved.meta, **best.meta}, name=evolved.name)
+        best = export(evolved)
     evolved, best = run.named(evolved), run.named(best)
+    # with require_holds, solved is the statement of the holds test (unless a worker was
+    # killed: then the test, which runs the task in this process, was not run)
+    solved_by = "holds" if cfg.require_holds and not lost else "evaluation"
+    solved = task.solved(best_f) and (solved_by == "evaluation" or run.holds_passed is not None)
     fresh: dict[str, Any] = {}
-    if check_used > 0:
-        fresh = check_fresh(task, best, seed, check_used, cfg.eval_time_limit)
+    if solved and solved_by == "holds":
+        assert run.holds_passed is not None
+        fresh = {**run.holds_passed["fresh"], "differs": False}
+    elif check_used > 0:
+        fresh = check_fresh(task, best, seed, check_used, cfg.eval_time_limit,
+                            required=required_rate(task, cfg),
+                            confidence=cfg.holds_confidence)
         fresh["differs"] = fresh_differs(task, best_f, fresh["mean_fitness"])
     faults = run.faults()
     files: list[Path] = []
@@ -1198,7 +1302,8 @@ def _evolve(
         rundir.write_best(best, task.registry, run.header())
         rundir.plots([r.to_dict() for r in run.history], best)
         rundir.update_run_info({"result": {
-            "solved": task.solved(best_f),
+            "solved": solved,
+            "solved_by": solved_by,
             "best_fitness": best_f,
             "generations": run.generation,
             "evaluations": run.evaluations,
@@ -1215,7 +1320,7 @@ def _evolve(
     return EvolutionResult(
         best_fsa=best,
         best_fitness=best_f,
-        solved=task.solved(best_f),
+        solved=solved,
         generations=run.generation,
         evaluations=run.evaluations,
         wall_time=run.wall(),
@@ -1229,6 +1334,7 @@ def _evolve(
         run_command=run_command(str(rundir.best_yaml) if rundir else "FILE", record),
         faults=faults,
         fresh=fresh,
+        solved_by=solved_by,
     )
 
 
@@ -1260,6 +1366,8 @@ def _unchanged(run: _Run, checkpoint: Mapping[str, Any], rundir: RunDir) -> Evol
     best = loads_fsa(text, str(rundir.checkpoint)) if isinstance(text, str) else evolved
     fresh = checkpoint.get("fresh")
     g, f, _ = run.best
+    solved_by = "holds" if run.cfg.require_holds and not run.faults().lost else "evaluation"
+    solved = run.task.solved(f) and (solved_by == "evaluation" or run.holds_passed is not None)
     restored: list[Path] = []
     for path, again in ((rundir.best_yaml, text if isinstance(text, str) else None),
                         (rundir.best_evolved_yaml, None)):
@@ -1268,11 +1376,12 @@ def _unchanged(run: _Run, checkpoint: Mapping[str, Any], rundir: RunDir) -> Evol
             rundir.write_editable(path, again.encode("utf-8"))
             restored.append(path)
     return EvolutionResult(
-        best_fsa=best, best_fitness=f, solved=run.task.solved(f), generations=run.generation,
+        best_fsa=best, best_fitness=f, solved=solved, generations=run.generation,
         evaluations=run.evaluations, wall_time=run.wall_before, history=run.history,
         evolved_fsa=evolved, best_genome=g, seed=run.seed, out_dir=rundir.path,
         files=restored,
         unchanged=True, budget=run.cfg.generations,
         run_command=run_command(str(rundir.best_yaml), run.record_info),
         faults=run.faults(), fresh=fresh if isinstance(fresh, dict) else {},
+        solved_by=solved_by,
     )

@@ -15,7 +15,8 @@ from skillcompose.arguments import MAX_TRIALS  # the command line's bound, for f
 
 from .errors import EvolutionConfigError
 
-__all__ = ["PRESETS", "TOPOLOGIES", "EvolutionConfig"]
+__all__ = ["DEFAULT_PRESET", "PRESETS", "PRESET_NAMES", "TOPOLOGIES", "EvolutionConfig",
+           "preset_settings"]
 
 _MOST = 10**9  # generations, intervals, jobs: bounded, far beyond any real run
 
@@ -80,6 +81,18 @@ class EvolutionConfig:
       memory keeps a genome from passing by luck on a later draw (or a later generation's
       candidates from being the same ones). 0 (default): the run's best alone, confirmed
       again each generation it stays the best.
+
+    What "solved" means (see :mod:`skillcompose.evolve.holds`):
+
+    - ``require_holds``: the task counts as solved only when the FSA the run would export
+      (simplified, as written) reaches the task's target on fresh episodes, never used for
+      selection, with a one-sided lower confidence bound of at least ``success_rate`` (the
+      task's ``success_rate`` when None) at confidence ``holds_confidence``; a sequential
+      test of at most ``holds_max_episodes`` episodes decides (one on a deterministic task).
+      An FSA that fails is demoted to the mean fitness of those episodes and never tested
+      again, and evolution goes on. Off (the paper): solved when the best evaluation
+      reaches the target; the run still measures the exported FSA on fresh episodes and
+      reports that rate with its bounds.
 
     Islands and diversity (all off by default; see docs/evolve.md, "Islands"):
 
@@ -155,6 +168,10 @@ class EvolutionConfig:
     eval_time_limit: float | None = 60.0
     worker_max_jobs: int = 0
     worker_max_growth_mb: float = 1024.0
+    require_holds: bool = False
+    success_rate: float | None = None
+    holds_confidence: float = 0.95
+    holds_max_episodes: int = 100_000
 
     def __post_init__(self) -> None:
         problems: list[str] = []
@@ -187,8 +204,19 @@ class EvolutionConfig:
         if self.topology not in TOPOLOGIES:
             problems.append(f"topology = {self.topology!r}: choose one of "
                             f"{', '.join(TOPOLOGIES)}")
+        whole("holds_max_episodes", 1, 10**7)
+        rate = self.success_rate
+        if rate is not None and (isinstance(rate, bool) or not isinstance(rate, (int, float))
+                                 or not 0.0 < rate < 1.0):
+            problems.append(f"success_rate = {rate!r}: expected a rate between 0 and 1 "
+                            "(exclusive), or None for the task's")
+        conf = self.holds_confidence
+        if isinstance(conf, bool) or not isinstance(conf, (int, float)) or \
+                not 0.5 <= conf < 1.0:
+            problems.append(f"holds_confidence = {conf!r}: expected a number from 0.5 to "
+                            "below 1, e.g. 0.95")
         for name in ("unique_children", "confirm_feedback", "neutral", "cache", "parsimony",
-                     "common_random_numbers"):
+                     "common_random_numbers", "require_holds"):
             if not isinstance(getattr(self, name), bool):
                 problems.append(f"{name} = {getattr(self, name)!r}: expected true or false")
         for name in ("p_mut", "p_cross", "p_add", "p_del", "p_param", "confirm_rate"):
@@ -277,10 +305,12 @@ _ISLANDS: dict[str, Any] = {  # the robust preset, its population on islands
     "unique_children": True,
 }
 
+_HOLDS: dict[str, Any] = {"require_holds": True}  # "solved" is the statement of holds.py
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
-    "robust": dict(_ROBUST),
-    "islands": dict(_ISLANDS),
+    "robust": {**_ROBUST, **_HOLDS},
+    "islands": {**_ISLANDS, **_HOLDS},
     "noisy": {  # the island preset, each genome's trials kept, a strict confirmation
         **_ISLANDS,
         "cache": True,
@@ -289,6 +319,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "confirm_trials": 100,
         "confirm_rate": 1.0,
         "confirm_candidates": 5,
+        **_HOLDS,
     },
     "deterministic": {
         "population": 30,
@@ -298,6 +329,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "param_sigma": 0.1,
         "cache": True,
         "unique_children": True,
+        **_HOLDS,
     },
     "push": {
         "population": 150,
@@ -309,6 +341,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "param_sigma": 0.05,
         "p_param": 1.0,
         "confirm_trials": 200,
+        **_HOLDS,
     },
 }
 """Named settings: ``paper`` is table 1 as it is; ``robust`` is our best options, chosen on
@@ -339,4 +372,24 @@ never confirmed again.
 evolves for many generations, the cache on (a genome met again costs nothing) and unique
 children (each generation spends its evaluations on genomes not met before), the two best
 surviving, tournaments of 5, initial FSAs of 12 nodes, parameter noise 0.1. One trial per
-evaluation: a deterministic task runs one whatever ``trials`` says."""
+evaluation: a deterministic task runs one whatever ``trials`` says.
+
+Every preset but ``paper`` has ``require_holds``: a run is solved when its exported FSA holds
+on fresh episodes at the required success rate (see :mod:`skillcompose.evolve.holds`).
+``default`` (the command line's when no preset is given, and :func:`evolve`'s when given no
+config) is not a fixed table: it is ``deterministic`` for a task whose episodes are all the
+same (``Task.deterministic``), else ``robust`` (:func:`preset_settings`)."""
+
+DEFAULT_PRESET = "default"
+
+
+def preset_settings(name: str, deterministic: bool) -> dict[str, Any]:
+    """The settings of preset ``name`` for a task that is ``deterministic`` or not:
+    ``default`` resolves to ``deterministic`` or ``robust``, the others are as listed."""
+    if name == DEFAULT_PRESET:
+        return dict(PRESETS["deterministic" if deterministic else "robust"])
+    return dict(PRESETS[name])
+
+
+PRESET_NAMES = (DEFAULT_PRESET, *PRESETS)
+"""Every name ``--preset`` takes."""

@@ -67,6 +67,7 @@ __all__ = [
     "evaluate_episodes",
     "evaluate_genome",
     "evaluate_job",
+    "iter_episodes",
     "make_evaluator",
     "ray_runtime_env",
 ]
@@ -338,23 +339,30 @@ def evaluate_job(
     return total / job.trials, raised << _FLAGS, first
 
 
-def evaluate_episodes(
+def iter_episodes(
     task: Task, compiled: CompiledFSA, seed: int | np.random.SeedSequence, trials: int,
     guard: Guard,
-) -> list[tuple[float, int]]:
-    """Episodes of a compiled FSA on ``trials`` worlds from ``seed``, each under ``guard``'s
-    time limit: each one's fitness and fault code (as :func:`evaluate_job`'s)."""
-    out = []
+) -> Iterator[tuple[float, int]]:
+    """Episodes of a compiled FSA on up to ``trials`` worlds from ``seed``, one at a time
+    (a caller may stop early), each under ``guard``'s time limit: each one's fitness and
+    fault code (as :func:`evaluate_job`'s)."""
     for trial in task.each_trial(compiled, seed, trials, each=guard.episode,
                                  catch=lambda exc: not _user_interrupt(exc, guard)):
         error = trial.result.error
         if isinstance(error, _TimeUp):
-            out.append((task.worst, TIMED_OUT))
+            yield task.worst, TIMED_OUT
         elif error is not None:
-            out.append((task.worst, 1 << _FLAGS))
+            yield task.worst, 1 << _FLAGS
         else:
-            out.append((task.worst if math.isnan(trial.fitness) else trial.fitness, 0))
-    return out
+            yield task.worst if math.isnan(trial.fitness) else trial.fitness, 0
+
+
+def evaluate_episodes(
+    task: Task, compiled: CompiledFSA, seed: int | np.random.SeedSequence, trials: int,
+    guard: Guard,
+) -> list[tuple[float, int]]:
+    """:func:`iter_episodes`, all ``trials`` of them."""
+    return list(iter_episodes(task, compiled, seed, trials, guard))
 
 
 def evaluate_genome(task: Task, compiler: GenomeCompiler, job: Job) -> float:

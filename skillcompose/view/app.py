@@ -207,7 +207,7 @@ def _run_row(run: RunSummary) -> dict[str, Any]:
     return {
         "name": run.name, "task": run.task, "status": run.status,
         "generations": run.generations, "best": _fmt(run.best),
-        "success": "–" if run.success is None else f"{100 * run.success:.0f}%",
+        "success": run.success_text,
         "settings": run.settings + (f" ({run.problem})" if run.problem else ""),
         "seed": "–" if run.seed is None else run.seed,
         "fsa_url": "/fsa?" + urlencode({"path": f"{run.name}/best.yaml"}),
@@ -252,7 +252,7 @@ def _runs_page(config: ViewerConfig) -> None:
         {"name": "status", "label": "status", "field": "status", "align": "left"},
         {"name": "generations", "label": "generations", "field": "generations"},
         {"name": "best", "label": "best fitness", "field": "best"},
-        {"name": "success", "label": "fresh success", "field": "success"},
+        {"name": "success", "label": "fresh success (95 % bounds)", "field": "success"},
         {"name": "seed", "label": "seed", "field": "seed"},
         {"name": "settings", "label": "settings", "field": "settings", "align": "left"},
     ]

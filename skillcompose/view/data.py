@@ -53,6 +53,7 @@ class RunSummary:
     success: float | None  # share of fresh episodes that succeeded, at the end
     problem: str = ""  # why a file of the run could not be read
     task_settings: str = ""  # the task's settings alone, as name=value, ...
+    success_text: str = "–"  # the fresh rate, its bounds and whether it holds, readable
 
 
 def read_history(path: Path) -> list[dict[str, Any]]:
@@ -196,8 +197,10 @@ def read_run(run_dir: Path, root: Path) -> RunSummary | None:
     if best is None and history:
         best = _number(history[-1].get("best"))
     success = None
+    success_text = "–"
     if result and isinstance(result.get("fresh"), dict):
         success = _number(result["fresh"].get("success_rate"))
+        success_text = fresh_text(result["fresh"])
     seed = info.get("seed")
     return RunSummary(
         name=name, path=run_dir, task=str(info.get("task", "?")),
@@ -206,7 +209,26 @@ def read_run(run_dir: Path, root: Path) -> RunSummary | None:
         task_settings=", ".join(f"{k}={v}" for k, v in
                                 dict(info.get("task_settings") or {}).items()),
         generations=len(history), best=best, success=success, problem=problem,
+        success_text=success_text,
     )
+
+
+def fresh_text(fresh: dict[str, Any]) -> str:
+    """A run's fresh check in a table cell: ``99.8% (99.5–100.0) holds``; an older run's
+    (no bounds) as its rate alone."""
+    rate = _number(fresh.get("success_rate"))
+    if rate is None:
+        return "–"
+    text = f"{100 * rate:.1f}%"
+    lower, upper = _number(fresh.get("lower")), _number(fresh.get("upper"))
+    if lower is not None and upper is not None:
+        text += f" ({100 * lower:.1f}–{100 * upper:.1f})"
+    holds = fresh.get("holds")
+    if holds is True:
+        text += " holds"
+    elif holds is False:
+        text += " does not hold"
+    return text
 
 
 def find_runs(root: Path) -> list[RunSummary]:

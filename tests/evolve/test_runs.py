@@ -23,8 +23,8 @@ from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
 TOY = ["examples.toy_task", "--set", "p_fail=0.3", "--set", "tolerance=0.002"]
-SMALL = ["--population", "30", "--initial-nodes", "8", "--seed", "4", "--quiet",
-         "--simplify-trials", "20", "--backend", "serial"]
+SMALL = ["--preset", "paper", "--population", "30", "--initial-nodes", "8", "--seed", "4",
+         "--quiet", "--simplify-trials", "20", "--backend", "serial"]
 CFG = EvolutionConfig(population=30, initial_nodes=8, generations=4, checkpoint_every=3)
 
 

@@ -26,5 +26,9 @@ def test_pour_water_notebook_runs_and_shows_fsa_history_and_replay() -> None:
     assert len(svgs) == 2 and all("<svg" in s for s in svgs)  # the reference, the best FSA
     evolution = next(h for h in htmls if "best fitness" in h)
     assert evolution.count("<svg") == 2  # the fitness history and the best FSA
+    # the notebook ends on an FSA that holds, and says so with its bounds
+    assert "holds at the required 99 %" in evolution and "95 % bounds" in evolution
+    printed = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert "fitness 0 (0 is water in the glass)" in printed
     replay = next(h for h in htmls if "blackboard changes" in h)
     assert "<td>1</td>" in replay and "GraspObject" in replay

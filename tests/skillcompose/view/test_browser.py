@@ -23,6 +23,7 @@ import pytest
 from examples.live_patrol import dock, drive_to_next, patrol_fsa, scan_room
 from skillcompose import Blackboard, Registry, load_fsa, load_task
 from skillcompose.executor import compile_fsa
+from skillcompose.view.data import fresh_text
 from skillcompose.view.live import LivePublisher
 
 from .conftest import REPO, Page, Viewer, append_generation, start_viewer, wait_for
@@ -76,7 +77,8 @@ def test_runs_table_lists_runs_and_chart_grows(viewer: Viewer, runs_dir: Path,
     assert table["toy"][2] == "finished"
     assert table["toy"][3] == str(len(toy_history))
     assert table["toy"][4] == f"{toy_info['result']['best_fitness']:.4g}"
-    assert table["toy"][5] == f"{100 * toy_info['result']['fresh']['success_rate']:.0f}%"
+    assert table["toy"][5] == fresh_text(toy_info["result"]["fresh"])  # rate, bounds, verdict
+    assert "(" in table["toy"][5] and "hold" in table["toy"][5]
     assert table["grow"][2] == "running"  # its lock names this (live) process
     assert table["grow"][3] == "3"
     assert "p_fail=0.1" in table["grow"][7]

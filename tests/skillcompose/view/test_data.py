@@ -217,3 +217,14 @@ def test_an_episode_whose_skill_exits_ends_in_error(tmp_path: Path) -> None:
     episode = run_episode(fsa, "tests.evolve.faulty_task", 0, {"fault": "exit"})
     assert episode.outcome == "error"
     assert [(f.state, f.outcome) for f in episode.frames[1:]] == [("F", "error")]
+
+
+def test_the_runs_table_gives_the_fresh_rate_with_its_bounds_and_verdict() -> None:
+    from skillcompose.view.data import fresh_text
+
+    assert fresh_text({"success_rate": 0.998, "lower": 0.995, "upper": 1.0,
+                       "holds": True}) == "99.8% (99.5–100.0) holds"
+    assert fresh_text({"success_rate": 0.075, "lower": 0.047, "upper": 0.113,
+                       "holds": False}) == "7.5% (4.7–11.3) does not hold"
+    assert fresh_text({"success_rate": 0.5}) == "50.0%"  # a run from before the bounds
+    assert fresh_text({"success_rate": "x"}) == "–"

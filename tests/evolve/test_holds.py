@@ -1,0 +1,120 @@
+"""Solved means it holds: with ``require_holds`` (every preset but paper) a run is solved only
+when its exported FSA reaches the target on fresh episodes with a lower confidence bound at
+the required rate; a candidate that fails is demoted and evolution goes on."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from skillcompose.cli import main as skillcompose_main
+from skillcompose.evolve import EvolutionConfig, RunDir, check_fresh, evolve
+from skillcompose.evolve.config import PRESETS, preset_settings
+from skillcompose.evolve.errors import EvolutionConfigError
+from skillcompose.task import Task, TaskError, load_task
+
+# table 1 with one trial per evaluation solves the noisy toy task on lucky episodes: the
+# candidates that do not hold are the common case, and the test must tell them apart
+LUCKY = EvolutionConfig(population=60, initial_nodes=8, generations=60, checkpoint_every=2,
+                        require_holds=True)
+
+
+def _task(p_fail: float = 0.3) -> Task:
+    return load_task("examples.toy_task", p_fail=p_fail)
+
+
+def test_the_default_preset_solves_only_when_the_exported_fsa_holds() -> None:
+    task = _task()
+    result = evolve(task, seed=1)  # no config: the default preset for this task
+    assert result.solved and result.solved_by == "holds"
+    fresh = result.fresh
+    assert fresh["kind"] == "holds" and fresh["holds"] is True
+    assert fresh["lower"] >= task.success_rate == fresh["required_rate"]
+    # on episodes the run never saw, the exported file holds the rate it claims
+    again = check_fresh(task, result.best_fsa, seed=12345, trials=2000)
+    assert again["success_rate"] >= task.success_rate
+
+
+def test_a_candidate_that_does_not_hold_is_demoted_and_evolution_goes_on(
+        tmp_path: Path) -> None:
+    task = _task(0.4)
+    result = evolve(task, LUCKY, seed=2, out_dir=tmp_path / "run", simplify_trials=30)
+    failed = RunDir(tmp_path / "run").load_checkpoint()["holds_failed"]
+    assert failed, "lucky candidates were tested and failed"
+    for _, mean in failed:
+        assert not task.solved(mean)  # demoted to the mean of their test's episodes
+    info = json.loads((tmp_path / "run" / "run.json").read_text())["result"]
+    assert info["solved"] == result.solved and info["solved_by"] == "holds"
+    if result.solved:
+        assert result.fresh["lower"] >= task.success_rate
+    else:
+        assert result.fresh["kind"] == "measured"
+
+
+def test_a_run_with_holds_resumes_to_the_same_result(tmp_path: Path) -> None:
+    task = _task(0.4)
+    full = evolve(task, LUCKY, seed=2, out_dir=tmp_path / "full", simplify_trials=30)
+
+    def stop(rec: object) -> None:
+        if getattr(rec, "generation", 0) == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        evolve(task, LUCKY, seed=2, out_dir=tmp_path / "b", simplify_trials=30,
+               on_generation=stop)
+    resumed = evolve(task, resume=tmp_path / "b")
+    assert (resumed.solved, resumed.generations, resumed.evaluations) == (
+        full.solved, full.generations, full.evaluations)
+    assert resumed.fresh == full.fresh
+    assert (tmp_path / "b" / "best.yaml").read_text() == \
+        (tmp_path / "full" / "best.yaml").read_text()
+
+
+def test_the_pool_gives_the_serial_run() -> None:
+    task = _task(0.4)
+    cfg = LUCKY.replace(generations=20)
+    serial = evolve(task, cfg, seed=3, simplify_trials=30)
+    pool = evolve(task, cfg, seed=3, simplify_trials=30, backend="process", workers=2)
+    assert (serial.solved, serial.generations, serial.evaluations, serial.fresh) == (
+        pool.solved, pool.generations, pool.evaluations, pool.fresh)
+
+
+def test_the_paper_preset_is_table_1_and_the_others_require_holds() -> None:
+    assert PRESETS["paper"] == {} and not EvolutionConfig().require_holds
+    for name in ("robust", "islands", "noisy", "deterministic", "push"):
+        assert PRESETS[name]["require_holds"] is True
+    assert preset_settings("default", True) == PRESETS["deterministic"]
+    assert preset_settings("default", False) == PRESETS["robust"]
+
+
+def test_the_success_rate_is_checked_where_it_is_given() -> None:
+    with pytest.raises(EvolutionConfigError, match=r"success_rate = 1.5"):
+        EvolutionConfig(success_rate=1.5)
+    with pytest.raises(EvolutionConfigError, match=r"holds_confidence = 1"):
+        EvolutionConfig(holds_confidence=1)
+    task = _task()
+    with pytest.raises(TaskError, match=r"success_rate = 0: expected a rate between 0 and 1"):
+        Task(name="t", registry=task.registry, setup=task.setup, fitness=task.fitness,
+             success_rate=0)
+
+
+def test_success_rate_on_the_command_line(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run"
+    assert skillcompose_main([
+        "evolve", "examples.toy_task", "--set", "p_fail=0.3", "--success-rate", "0.9",
+        "--population", "60", "--initial-nodes", "8", "--generations", "40", "--seed", "1",
+        "--workers", "1", "--quiet", "--simplify-trials", "30", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    info = json.loads((out / "run.json").read_text())
+    assert info["config"]["success_rate"] == 0.9 and info["config"]["require_holds"]
+    fresh = info["result"]["fresh"]
+    if info["result"]["solved"]:
+        assert fresh["required_rate"] == 0.9 and fresh["lower"] >= 0.9
+        assert "holds at the required 90 %" in captured.out
+    assert skillcompose_main(["evolve", "examples.toy_task", "--success-rate", "1",
+                              "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "success_rate = 1.0" in err[0]
