@@ -33,8 +33,8 @@ from typing import Any, TextIO
 import numpy as np
 
 from skillcompose import FSA, dumps_fsa, load_fsa, loads_fsa
-from skillcompose.arguments import MAX_WORKERS
 from skillcompose.fsafile import in_layout_of
+from skillcompose.limits import MAX_WORKERS
 from skillcompose.task import Task
 
 from .config import DEFAULT_PRESET, EvolutionConfig, preset_settings

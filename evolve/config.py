@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from skillcompose.arguments import MAX_TRIALS  # the command line's bound, for files too
+from skillcompose.limits import MAX_TRIALS  # the command line's bound, for files too
 
 from .errors import EvolutionConfigError
 

@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from skillcompose.arguments import MAX_TRIALS
+from skillcompose.limits import MAX_TRIALS
 from skillcompose.origins import inside, module_origins
 from skillcompose.task import Task, load_task
 

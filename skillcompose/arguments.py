@@ -55,10 +55,7 @@ __all__ = [
     "whole",
 ]
 
-MAX_SEED = 2**63 - 1
-MAX_TRIALS = 1_000_000
-"""The most runs one command makes of an FSA per point (``--trials``, ``--reps``)."""
-MAX_WORKERS = 1024
+from .limits import MAX_SEED, MAX_TRIALS, MAX_WORKERS  # the core's bounds, parsed here
 
 _WHOLE = re.compile(r"[-+]?[0-9]{1,30}")
 _REAL = re.compile(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]{1,4})?")

@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from .registry import Registry
     from .task import Task
 
-__all__ = ["SUBCOMMAND_MODULES", "build_parser", "check_backend", "main"]
+__all__ = ["SUBCOMMAND_MODULES", "build_parser", "main"]
 
 DRAWING_SUFFIXES = (".dot", ".gv", ".mmd", ".mermaid", ".svg", ".png", ".pdf")
 MERMAID_SUFFIXES = (".mmd", ".mermaid")
@@ -61,7 +61,7 @@ class _Parser(argparse.ArgumentParser):
 
 SUBCOMMAND_MODULES = (
     "skillcompose.evolve.cli",
-    "skillcompose.robustness",
+    "skillcompose.robustness_cli",
     "skillcompose.robots.cli",
     "skillcompose.view.cli",
 )
@@ -223,7 +223,7 @@ def _one_line_warnings(prog: str) -> Iterator[None]:
 
 # ---------------------------------------------------------------------------------------
 def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
-    from .registry import Registry
+    from .registry import Registry, check_backend
     from .task import load_task, parse_settings
 
     started = time.perf_counter()
@@ -242,21 +242,11 @@ def _load(args: argparse.Namespace) -> tuple[Registry, Task | None]:
     registry.load_modules(args.skills)
     registry.load_entry_points()
     if args.backend and len(registry):
-        check_backend(registry, args.backend)
+        check_backend(registry, args.backend)  # one line, status 2, as any registry error
     note(args, f"skillcompose {args.command}: loaded {len(registry)} skills"
          + (f" and task {task.name}" if task is not None else "")
          + f" in {time.perf_counter() - started:.2f} s", level=1)
     return registry, task
-
-
-def check_backend(registry: Registry, backend: str) -> None:
-    """Raise :class:`UsageError` unless some skill of ``registry`` has ``backend``."""
-    known = sorted({b for name in registry.names() for b in registry.backends(name)})
-    if backend not in known:
-        raise UsageError(
-            f"--backend {backend!r}: no loaded skill has this backend; the loaded skills "
-            f"have {', '.join(known) or 'none'}"
-        )
 
 
 def cmd_run(args: argparse.Namespace) -> int:

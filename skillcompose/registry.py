@@ -34,7 +34,7 @@ from .origins import on_path, use_import_path
 from .params import check_declared
 from .skill import Skill, SkillSpec
 
-__all__ = ["DEFAULT_BACKEND", "ENTRY_POINT_GROUP", "Registry"]
+__all__ = ["DEFAULT_BACKEND", "ENTRY_POINT_GROUP", "Registry", "check_backend"]
 
 DEFAULT_BACKEND = "default"
 ENTRY_POINT_GROUP = "skillcompose.skills"
@@ -348,3 +348,14 @@ def _import_target(target: str) -> ModuleType:
                 "name importable from the current directory, or a path to a .py file"
             ) from exc
         raise
+
+
+def check_backend(registry: Registry, backend: str) -> None:
+    """Raise :class:`RegistryError` unless some skill of ``registry`` has ``backend``
+    (the command line's ``--backend``, the viewer's replay, a robustness sweep)."""
+    known = sorted({b for name in registry.names() for b in registry.backends(name)})
+    if backend not in known:
+        raise RegistryError(
+            f"--backend {backend!r}: no loaded skill has this backend; the loaded skills "
+            f"have {', '.join(known) or 'none'}"
+        )

@@ -17,11 +17,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .arguments import MAX_TRIALS
 from .blackboard import Blackboard
 from .errors import SkillcomposeError, clip, control_characters
 from .executor import CompiledFSA, FSARun, RunResult, compile_fsa, trial_rngs
 from .fsa import DEFAULT_TERMINALS, ERROR, FSA, MAX_STEP_LIMIT
+from .limits import MAX_TRIALS
 from .registry import Registry, describe_exception, import_target
 
 __all__ = ["Task", "TaskError", "TaskRef", "Trial", "load_task", "skill_fault", "trials"]

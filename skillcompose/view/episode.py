@@ -15,9 +15,9 @@ from typing import Any
 
 from skillcompose import RUNNING, Blackboard, load_fsa, load_task
 from skillcompose.blackboard import DELETED
-from skillcompose.cli import check_backend
 from skillcompose.executor import trial_rngs
 from skillcompose.fsa import FSA
+from skillcompose.registry import check_backend
 
 __all__ = ["KINEMATIC_KEYS", "MAX_STEPS", "Episode", "Frame", "run_episode", "short"]
 

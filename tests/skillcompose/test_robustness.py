@@ -14,10 +14,10 @@ from skillcompose.robustness import (
     SweepRow,
     parse_values,
     plot_sweep,
-    register_cli,
     robustness_sweep,
     write_csv,
 )
+from skillcompose.robustness_cli import register_cli
 from skillcompose.task import TaskError, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
