@@ -11,6 +11,11 @@ Evolve, then run the result on the PR2 model::
     skillcompose run runs/push/best.yaml --task examples.move_to_push --trials 1000
     skillcompose run runs/push/best.yaml --task examples.move_to_push --set backend=kinematic
 
+Evolve in the world drawn after the paper's text (``world`` below)::
+
+    skillcompose evolve examples.move_to_push --preset push --set world=paper \\
+        --out runs/push-paper
+
 Settings (``make_task(**settings)``, ``--set name=value``):
 
 - ``network`` (``layered``, default, or ``recurrent``): MoveBase's topology,
@@ -21,26 +26,45 @@ Settings (``make_task(**settings)``, ``--set name=value``):
   happens to fit one world "solve" in generation 0.
 - ``step_limit`` (default 20, the paper's).
 - ``judge`` (default false): draw only the worlds the paper tested the evolved FSA on
-  (the object at most 1.5 m away and not behind the robot).
+  (the object at most 1.5 m away and not behind the robot), in either world.
+- ``world`` (``facing``, default, or ``paper``): how the robot and the object are placed
+  (below). ``facing`` is the world this task has always drawn (the same seed gives the same
+  worlds); ``paper`` follows section 4.2's text as closely as it allows.
 
 Decisions where section 4.2 is vague (kept by the skills and by this task):
 
-- The room is 5 m × 5 m (``|x|, |y| <= 2.5``), empty but for one axis-aligned table: width
-  and length uniform in [0.3, 1.2] m, top height uniform in [0.70, 0.80] m, its centre
-  uniform in [-1.5, 1.5]² m. The object is a 6 × 6 × 20 cm box (a bottle) standing on the
-  top; Push aims at its centre, 10 cm above the top (on the PR2 model a push 6 cm above
-  the top puts the forearm into the table for objects 15 cm or more from the edge).
-- The robot starts with its whole base in the room, not touching the table, its footprint
-  at most 2 m from the table's footprint, torso down, arms tucked. It faces the side of the
-  table nearest to it (the side whose outward normal points most towards the robot), up to
-  ±15° off: a robot that has navigated to a table has it in front of it.
-- The object lies within 30 cm of that side's edge (centre 5–30 cm in, at least 5 cm from
-  the side's ends), anywhere along it. The paper says only that the object's position is
-  "randomly generated" (nothing about its distribution); here it stays near the facing side
-  because the network's five inputs carry the object's position only, not the table's: an
-  object deeper than the arm reaches from the facing side would need another side, which the
-  network cannot see. Measured with the PR2's reach, about a quarter of placements uniform
-  on the top are such.
+- The room is 5 m × 5 m (``|x|, |y| <= 2.5``; the paper's "The environment is 5m²" read as
+  5 m across), empty but for one axis-aligned table: width and length uniform in
+  [0.3, 1.2] m, top height uniform in [0.70, 0.80] m, its centre uniform in [-1.5, 1.5]² m
+  (both worlds). The object is a 6 × 6 × 20 cm box (a bottle) standing on the top; Push aims
+  at its centre, 10 cm above the top (on the PR2 model a push 6 cm above the top puts the
+  forearm into the table for objects 15 cm or more from the edge).
+- In both worlds the robot starts with its whole base in the room, not touching the table,
+  torso down, arms tucked.
+- The ``facing`` world (default). The robot's footprint is at most 2 m from the table's
+  footprint (measured conservatively: the base centre's distance to the table's footprint,
+  less the base's half size). It faces the side of the table nearest to it (the side whose
+  outward normal points most towards the robot), up to ±15° off: a robot that has navigated
+  to a table has it in front of it. The object lies within 30 cm of that side's edge (centre
+  5–30 cm in, at least 5 cm from the side's ends), anywhere along it. The paper says only
+  that the object's position is "randomly generated" (nothing about its distribution); here
+  it stays near the facing side because the network's five inputs carry the object's
+  position only, not the table's: an object deeper than the arm reaches from the facing side
+  would need another side, which the network cannot see. Measured with the PR2's reach,
+  about a quarter of placements uniform on the top are such.
+- The ``paper`` world (``--set world=paper``). Section 4.2 says: "a table with an object
+  placed on top and a robot which starts within 2m of the table. Every time the FSA is
+  evaluated the table position and dimensions, the object position and the robot position
+  are randomly generated." It is silent on every distribution, on the robot's heading, on
+  how "within 2m" is measured and on how close to the edges the object may stand. Chosen
+  here: the table as in ``facing``; the robot uniform over the room where its whole
+  footprint is in the room, does not touch the table and is at most 2 m from the table's
+  footprint (the exact distance between the two footprints), its heading uniform in
+  [-π, π) (the text does not say it faces the table); the object's centre uniform on the
+  top, at least 3 cm from every edge (so its 6 × 6 cm footprint stands wholly on the top,
+  and nothing else). Here the object may stand deeper than an arm reaches from the nearest
+  side, and the robot may start with the table behind it: the network still sees only the
+  object's position.
 - MoveBase fails when the base footprint at the new pose comes closer than 5 cm
   (:data:`~skillcompose.skills.move_to_push.SAFETY_M`) to the table's footprint (the
   navigation's safety distance; the paper blames most failures on the real robot on it) or
@@ -59,7 +83,7 @@ Decisions where section 4.2 is vague (kept by the skills and by this task):
 from __future__ import annotations
 
 import math
-from typing import Any, get_args
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -75,9 +99,12 @@ __all__ = [
     "JUDGE_MAX_DISTANCE_M",
     "OBJECT_BAND_M",
     "ROOM_HALF_M",
+    "WORLDS",
+    "World",
     "fitness",
     "make_task",
     "random_world",
+    "setup",
 ]
 
 ROOM_HALF_M = 2.5
@@ -94,6 +121,12 @@ JUDGE_MAX_DISTANCE_M = 1.5
 SOLVED_SUCCESS = 0.95
 """A mean success at least this high over an evaluation's trials counts as solved."""
 BACKENDS = ("sim", "kinematic")
+World = Literal["facing", "paper"]
+WORLDS: tuple[World, ...] = ("facing", "paper")
+"""The ``world`` setting's choices (module docstring)."""
+PAPER_OBJECT_MARGIN_M = OBJECT_HALF_EXTENTS_M[0]
+"""In the ``paper`` world the object's centre is at least this far in from the top's edges,
+so its whole footprint is on the top [m]."""
 
 
 def _footprint_gap(pose: tuple[float, float, float], table: Box) -> float:
@@ -106,58 +139,121 @@ def _footprint_gap(pose: tuple[float, float, float], table: Box) -> float:
     return math.hypot(dx, dy) - BASE_HALF_EXTENTS_M[0]
 
 
-def random_world(rng: np.random.Generator, *, judge: bool = False) -> dict[str, Any]:
-    """One world (module docstring): table, object and robot, drawn from ``rng`` only.
+def _footprint_distance(pose: tuple[float, float, float], table: Box) -> float:
+    """Distance [m] between the base footprint at ``pose`` (a square turned by its yaw) and
+    the axis-aligned table's footprint, exact when they do not overlap: two disjoint convex
+    polygons are nearest at a corner of one of them."""
+    x, y, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    bx, by = BASE_HALF_EXTENTS_M
+    tx, ty = table.center_m[0], table.center_m[1]
+    hx, hy = table.half_extents_m[0], table.half_extents_m[1]
+
+    def to_rect(px: float, py: float, ex: float, ey: float) -> float:
+        return math.hypot(max(abs(px) - ex, 0.0), max(abs(py) - ey, 0.0))
+
+    corners = [(a, b) for a in (-1.0, 1.0) for b in (-1.0, 1.0)]
+    base = min(to_rect(x + c * a * bx - s * b * by - tx, y + s * a * bx + c * b * by - ty,
+                       hx, hy) for a, b in corners)
+    top = min(to_rect(c * (tx + a * hx - x) + s * (ty + b * hy - y),
+                      -s * (tx + a * hx - x) + c * (ty + b * hy - y), bx, by)
+              for a, b in corners)
+    return min(base, top)
+
+
+def _table(rng: np.random.Generator) -> tuple[Box, float, float, float, float, float]:
+    """The table (both worlds draw it alike) and its centre, width, length and height."""
+    w, length = rng.uniform(*TABLE_SIZE_M, size=2)
+    height = rng.uniform(*TABLE_HEIGHT_M)
+    cx, cy = rng.uniform(-TABLE_CENTRE_M, TABLE_CENTRE_M, size=2)
+    table = Box.table((float(cx), float(cy)), (float(w), float(length)), float(height))
+    return table, float(cx), float(cy), float(w), float(length), float(height)
+
+
+def _facing_world(rng: np.random.Generator) -> dict[str, Any] | None:
+    """One draw of the ``facing`` world (module docstring), None when it must be redrawn."""
+    table, cx, cy, w, length, height = _table(rng)
+    for _ in range(1000):
+        x, y = rng.uniform(-ROOM_HALF_M, ROOM_HALF_M, size=2)
+        probe = (float(x), float(y), 0.0)
+        if not base_in_room(probe, ROOM_HALF_M) or base_hits_table(probe, table):
+            continue
+        if _footprint_gap(probe, table) > START_DISTANCE_M:
+            continue
+        break
+    else:  # pragma: no cover - the table is always small beside the room
+        return None
+    # the side facing the robot: outward normal pointing most towards it
+    sides = {
+        (1.0, 0.0): x - (cx + w / 2), (-1.0, 0.0): (cx - w / 2) - x,
+        (0.0, 1.0): y - (cy + length / 2), (0.0, -1.0): (cy - length / 2) - y,
+    }
+    nx, ny = max(sides, key=lambda k: sides[k])
+    yaw = math.atan2(-ny, -nx) + rng.uniform(-HEADING_NOISE_RAD, HEADING_NOISE_RAD)
+    pose = (float(x), float(y), float(math.remainder(yaw, 2 * math.pi)))
+    if base_hits_table(pose, table) or not base_in_room(pose, ROOM_HALF_M):
+        return None
+    depth_max = min(OBJECT_BAND_M[1], (w if nx else length) - OBJECT_BAND_M[0])
+    depth = rng.uniform(OBJECT_BAND_M[0], depth_max)
+    along_half = (length if nx else w) / 2 - OBJECT_END_MARGIN_M
+    along = rng.uniform(-along_half, along_half)
+    if nx:
+        ox, oy = cx + nx * (w / 2 - depth), cy + along
+    else:
+        ox, oy = cx + along, cy + ny * (length / 2 - depth)
+    obj = (float(ox), float(oy), float(height + OBJECT_HALF_EXTENTS_M[2]))
+    return {"table_world": table, "object_position_world": obj, "base_pose_world": pose}
+
+
+def _paper_world(rng: np.random.Generator) -> dict[str, Any] | None:
+    """One draw of the ``paper`` world (module docstring), None when it must be redrawn."""
+    table, cx, cy, w, length, height = _table(rng)
+    for _ in range(1000):
+        x, y = (float(v) for v in rng.uniform(-ROOM_HALF_M, ROOM_HALF_M, size=2))
+        pose = (x, y, float(rng.uniform(-math.pi, math.pi)))
+        if not base_in_room(pose, ROOM_HALF_M) or base_hits_table(pose, table):
+            continue
+        if _footprint_distance(pose, table) <= START_DISTANCE_M:
+            break
+    else:  # pragma: no cover - the table is always small beside the room
+        return None
+    ax, ay = w / 2 - PAPER_OBJECT_MARGIN_M, length / 2 - PAPER_OBJECT_MARGIN_M
+    ox, oy = float(rng.uniform(cx - ax, cx + ax)), float(rng.uniform(cy - ay, cy + ay))
+    obj = (ox, oy, height + OBJECT_HALF_EXTENTS_M[2])
+    return {"table_world": table, "object_position_world": obj, "base_pose_world": pose}
+
+
+def random_world(
+    rng: np.random.Generator, *, judge: bool = False, world: World = "facing"
+) -> dict[str, Any]:
+    """One world (module docstring), ``facing`` or ``paper``: table, object and robot, drawn
+    from ``rng`` only.
 
     With ``judge``, worlds are redrawn until the object is at most 1.5 m from the robot and
     not behind it (x >= 0 in the robot frame), as the paper's tests on the robot were.
     """
+    if world not in WORLDS:
+        raise ValueError(f"move_to_push: world={world!r} must be one of {list(WORLDS)}")
+    draw = _paper_world if world == "paper" else _facing_world
     while True:
-        w, length = rng.uniform(*TABLE_SIZE_M, size=2)
-        height = rng.uniform(*TABLE_HEIGHT_M)
-        cx, cy = rng.uniform(-TABLE_CENTRE_M, TABLE_CENTRE_M, size=2)
-        table = Box.table((float(cx), float(cy)), (float(w), float(length)), float(height))
-        for _ in range(1000):
-            x, y = rng.uniform(-ROOM_HALF_M, ROOM_HALF_M, size=2)
-            probe = (float(x), float(y), 0.0)
-            if not base_in_room(probe, ROOM_HALF_M) or base_hits_table(probe, table):
-                continue
-            if _footprint_gap(probe, table) > START_DISTANCE_M:
-                continue
-            break
-        else:  # pragma: no cover - the table is always small beside the room
+        drawn = draw(rng)
+        if drawn is None:
             continue
-        # the side facing the robot: outward normal pointing most towards it
-        sides = {
-            (1.0, 0.0): x - (cx + w / 2), (-1.0, 0.0): (cx - w / 2) - x,
-            (0.0, 1.0): y - (cy + length / 2), (0.0, -1.0): (cy - length / 2) - y,
-        }
-        nx, ny = max(sides, key=lambda k: sides[k])
-        yaw = math.atan2(-ny, -nx) + rng.uniform(-HEADING_NOISE_RAD, HEADING_NOISE_RAD)
-        pose = (float(x), float(y), float(math.remainder(yaw, 2 * math.pi)))
-        if base_hits_table(pose, table) or not base_in_room(pose, ROOM_HALF_M):
-            continue
-        depth_max = min(OBJECT_BAND_M[1], (w if nx else length) - OBJECT_BAND_M[0])
-        depth = rng.uniform(OBJECT_BAND_M[0], depth_max)
-        along_half = (length if nx else w) / 2 - OBJECT_END_MARGIN_M
-        along = rng.uniform(-along_half, along_half)
-        if nx:
-            ox, oy = cx + nx * (w / 2 - depth), cy + along
-        else:
-            ox, oy = cx + along, cy + ny * (length / 2 - depth)
-        obj = (float(ox), float(oy), float(height + OBJECT_HALF_EXTENTS_M[2]))
         if judge:
-            rx, ry, _ = object_in_robot_frame(pose, obj)
+            rx, ry, _ = object_in_robot_frame(drawn["base_pose_world"],
+                                              drawn["object_position_world"])
             if rx < 0.0 or math.hypot(rx, ry) > JUDGE_MAX_DISTANCE_M:
                 continue
-        return {"table_world": table, "object_position_world": obj, "base_pose_world": pose}
+        return drawn
 
 
-def setup(rng: np.random.Generator, *, judge: bool = False) -> Blackboard:
+def setup(
+    rng: np.random.Generator, *, judge: bool = False, world: World = "facing"
+) -> Blackboard:
     """The blackboard of one trial: the world of :func:`random_world`, torso down."""
-    world = random_world(rng, judge=judge)
+    drawn = random_world(rng, judge=judge, world=world)
     return Blackboard({
-        **world,
+        **drawn,
         "room_half_m": ROOM_HALF_M,
         "torso_height_m": 0.0,
         "arm_in_use": None,
@@ -178,7 +274,7 @@ def register(registry: Registry, *, network: Topology = "layered") -> None:
 
 def make_task(
     *, network: str = "layered", backend: str = "sim", trials: int = 10, step_limit: int = 20,
-    judge: bool = False,
+    judge: bool = False, world: str = "facing",
 ) -> Task:
     """The move-to-push task; see the module's docstring for the settings."""
     if network not in get_args(Topology):
@@ -194,16 +290,20 @@ def make_task(
             )
     if not isinstance(judge, bool):
         raise TaskError(f"move_to_push: setting judge={judge!r} must be true or false")
+    if world not in WORLDS:
+        raise TaskError(f"move_to_push: setting world={world!r} must be one of "
+                        f"{list(WORLDS)}, e.g. world=paper")
+    chosen: World = "paper" if world == "paper" else "facing"
     registry = Registry(backend=backend)
     register(registry, network=network)  # type: ignore[arg-type]
 
-    def world(rng: np.random.Generator) -> Blackboard:
-        return setup(rng, judge=judge)
+    def draw(rng: np.random.Generator) -> Blackboard:
+        return setup(rng, judge=judge, world=chosen)
 
     return Task(
         name="move_to_push",
         registry=registry,
-        setup=world,
+        setup=draw,
         fitness=fitness,
         minimize=False,
         target=SOLVED_SUCCESS,
@@ -212,7 +312,7 @@ def make_task(
         backend=backend,
         skills=("RecogniseObject", "MoveBase", "Push"),
         settings={"network": network, "backend": backend, "trials": trials,
-                  "step_limit": step_limit, "judge": judge},
+                  "step_limit": step_limit, "judge": judge, "world": world},
         terminal_skills=("Push",),
         success_rate=0.9,
     )

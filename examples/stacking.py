@@ -1,6 +1,6 @@
 """Stacking: the paper's third experiment (section 4.3) as a task.
 
-Two objects stand on a table in front of the robot; it must put either one on the other.
+Two objects stand on a table near the robot; it must put either one on the other.
 The skills (:mod:`skillcompose.skills.stacking`): RecogniseObject (both objects), GraspParam(which),
 MoveToReach (the FSA evolved for moving to push, ``examples/move_to_reach.fsa.yaml``, as a
 nested skill), MoveGripperToStack(which, dx, dy, dz), OpenGripper and CheckSuccess
@@ -14,6 +14,11 @@ Evolve, run, and run the same file on the PR2 model::
         --trials 100
     skillcompose robustness runs/stacking/best.yaml --task examples.stacking \\
         --p-fail 0:0.9:30 --reps 3000 -o figure12.png
+
+Evolve in the world drawn after the paper's text (``world`` below)::
+
+    skillcompose evolve examples.stacking --preset robust --set world=paper \\
+        --out runs/stacking-paper
 
 Settings (``make_task(**settings)``, ``--set name=value``):
 
@@ -29,26 +34,52 @@ Settings (``make_task(**settings)``, ``--set name=value``):
   beside this module); any valid evolved move-to-push FSA for the layered network.
 - ``network`` (``layered``, default, or ``recurrent``): the topology MoveToReach's file was
   evolved with.
+- ``world`` (``facing``, default, or ``paper``): where the robot and the objects start and
+  whether MoveToReach may skip its FSA (below). ``facing`` is the world this task has always
+  drawn (the same seed gives the same worlds); ``paper`` follows sections 4.3 and 4.2 as
+  closely as their text allows.
 
 Decisions where section 4.3 is vague (kept by the skills and by this task):
 
 - The world is section 4.2's room (5 m × 5 m) with one table: width and length uniform in
-  [0.5, 1.2] m, top at [0.70, 0.80] m, centre in [-1.5, 1.5]² m. The two objects are
-  6 × 6 × 12 cm boxes (``box`` and ``bottle``) on the top, near one side of the table (the
-  side the robot faces): 8–25 cm in from its edge, 12–25 cm apart along it. Which of them is
-  "the first" (GraspParam's ``which`` > 0.5) is drawn per world.
-- The robot: in half the worlds (drawn per world) it starts *near*, 10–30 cm from the
-  table's side facing the objects, and the reachability classifier says the same arm reaches
-  both objects from there, so MoveToReach is not needed; in the other half it starts *far*,
-  anywhere in the room with its footprint at most 2 m from the table's, facing the table's
-  nearest side ±15°, and the classifier says no arm reaches either object, so it is.
+  [0.5, 1.2] m, top at [0.70, 0.80] m, centre in [-1.5, 1.5]² m (both worlds). The two
+  objects are 6 × 6 × 12 cm boxes (``box`` and ``bottle``) standing on the top; the robot
+  starts with its whole base in the room, not touching the table, torso down.
+- The ``facing`` world (default). The objects stand near one side of the table (the side
+  the robot faces): 8–25 cm in from its edge, 12–25 cm apart along it. Which of them is
+  "the first" (GraspParam's ``which`` > 0.5) is drawn per world. In half the worlds (drawn
+  per world) the robot starts *near*, 10–30 cm from the table's side facing the objects,
+  and the reachability classifier says the same arm reaches both objects from there, so
+  MoveToReach is not needed; in the other half it starts *far*, anywhere in the room with
+  its footprint at most 2 m from the table's, facing the table's nearest side ±15°, and
+  the classifier says no arm reaches either object, so it is.
+- The ``paper`` world (``--set world=paper``). Section 4.3 says only that "a robot is
+  facing two objects and it has to stack one over the other" (Figure 11: "two objects in
+  front of the robot") and that MoveToReach is "the action evolved in the previous
+  experiment"; it is silent on where the table, the objects and the robot are and how they
+  are drawn. Chosen here: section 4.2's world, the one MoveToReach was evolved in ("the
+  table position and dimensions, the object position and the robot position are randomly
+  generated", a robot "within 2m of the table"). The table as in ``facing``; both objects'
+  centres uniform on the top, at least 3 cm from every edge (their footprints wholly on the
+  top) and at least 12 cm apart (``facing``'s smallest gap: neither touches the other),
+  named in the order drawn, so either is the first with equal chance; the robot uniform over
+  the room where its whole footprint is in the room, does not touch the table and is at
+  most 2 m from the table's footprint (the exact distance between the footprints), its
+  heading uniform in [-π, π). So the robot need not face the objects at the start, which
+  section 4.3's "facing two objects" suggests; the text gives no distance or heading to keep
+  it to. There is no near or far half: ``start_near`` is None, and :func:`random_world` and
+  :func:`setup` refuse a ``near``.
 - MoveToReach's target: with an object held, the other object (where it will be stacked);
   empty-handed, the object GraspParam last tried to grasp, else the first
-  (:func:`skillcompose.skills.stacking.reach_target`). When an arm already reaches it (the check of
-  MoveToReach's own terminating Push), MoveToReach succeeds without moving: the evolved
-  network never started within reach in section 4.2, and from there it drove the robot
-  away. It is one step of the 15 here, whatever its own run took (its file's own
-  ``step_limit`` bounds that).
+  (:func:`skillcompose.skills.stacking.reach_target`). In the ``facing`` world, when an arm
+  already reaches it (the check of MoveToReach's own terminating Push), MoveToReach succeeds
+  without moving: the evolved network never started within reach in section 4.2, and from
+  there it drove the robot away. In the ``paper`` world it has no such shortcut
+  (``shortcut=False``): the paper's MoveToReach is the evolved FSA itself, so it runs
+  (RecogniseObject, MoveBase..., Push) whatever the start, and may move the robot away.
+- Steps, in both worlds: MoveToReach is one step of the 15, whatever its own run took (its
+  file's own ``step_limit`` bounds that): a shortcut success in ``facing`` and a whole
+  nested run in ``paper`` each count one step, as does a random failure.
 - On the PR2 model a gripper holds an object from the side, 3 cm above its centre, when it
   can, else from above, and keeps that grasp until it lets go, so the object stays upright;
   from above only, objects 12 cm over the other object were often beyond the arm's reach
@@ -84,7 +115,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, get_args
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -103,6 +134,8 @@ __all__ = [
     "NO_GRASP_FITNESS",
     "OBJECT_HALF_EXTENTS_M",
     "ROOM_HALF_M",
+    "WORLDS",
+    "World",
     "distance",
     "fitness",
     "make_task",
@@ -131,9 +164,16 @@ START_DISTANCE_M = 2.0
 HEADING_NOISE_RAD = math.radians(15.0)
 NO_GRASP_FITNESS = 50.0
 """Equation (2)'s score when no object was ever in a gripper."""
-"""Equation (2)'s score when no object was ever in a gripper."""
 DEFAULT_P_FAIL = {"sim": 0.3, "kinematic": 0.0}
 BACKENDS = ("sim", "kinematic")
+World = Literal["facing", "paper"]
+WORLDS: tuple[World, ...] = ("facing", "paper")
+"""The ``world`` setting's choices (module docstring)."""
+PAPER_OBJECT_MARGIN_M = OBJECT_HALF_EXTENTS_M[0]
+"""In the ``paper`` world each object's centre is at least this far in from the top's edges,
+so its whole footprint is on the top [m]."""
+PAPER_OBJECT_GAP_M = OBJECT_GAP_M[0]
+"""In the ``paper`` world the objects' centres are at least this far apart [m]."""
 _SIDES = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 
 
@@ -200,16 +240,42 @@ def _objects(rng: np.random.Generator, table: Box, normal: tuple[float, float]
     return objects
 
 
-def random_world(rng: np.random.Generator, *, near: bool | None = None) -> dict[str, Any]:
-    """One world (module docstring), drawn from ``rng`` only. ``near`` forces where the
-    robot starts (default: drawn, near with probability :data:`NEAR_FRACTION`)."""
+def _footprint_distance(pose: tuple[float, float, float], table: Box) -> float:
+    """Distance [m] between the base footprint at ``pose`` (a square turned by its yaw) and
+    the axis-aligned table's footprint, exact when they do not overlap: two disjoint convex
+    polygons are nearest at a corner of one of them."""
+    x, y, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    bx, by = BASE_HALF_EXTENTS_M
+    tx, ty = table.center_m[0], table.center_m[1]
+    hx, hy = table.half_extents_m[0], table.half_extents_m[1]
+
+    def to_rect(px: float, py: float, ex: float, ey: float) -> float:
+        return math.hypot(max(abs(px) - ex, 0.0), max(abs(py) - ey, 0.0))
+
+    corners = [(a, b) for a in (-1.0, 1.0) for b in (-1.0, 1.0)]
+    base = min(to_rect(x + c * a * bx - s * b * by - tx, y + s * a * bx + c * b * by - ty,
+                       hx, hy) for a, b in corners)
+    top = min(to_rect(c * (tx + a * hx - x) + s * (ty + b * hy - y),
+                      -s * (tx + a * hx - x) + c * (ty + b * hy - y), bx, by)
+              for a, b in corners)
+    return min(base, top)
+
+
+def _table(rng: np.random.Generator) -> Box:
+    """The table, drawn alike in both worlds."""
+    w, length = (float(v) for v in rng.uniform(*TABLE_SIZE_M, size=2))
+    height = float(rng.uniform(*TABLE_HEIGHT_M))
+    cx, cy = (float(v) for v in rng.uniform(-TABLE_CENTRE_M, TABLE_CENTRE_M, size=2))
+    return Box.table((cx, cy), (w, length), height)
+
+
+def _facing_world(rng: np.random.Generator, near: bool | None) -> dict[str, Any]:
+    """The ``facing`` world (module docstring)."""
     if near is None:
         near = bool(rng.random() < NEAR_FRACTION)
     while True:
-        w, length = (float(v) for v in rng.uniform(*TABLE_SIZE_M, size=2))
-        height = float(rng.uniform(*TABLE_HEIGHT_M))
-        cx, cy = (float(v) for v in rng.uniform(-TABLE_CENTRE_M, TABLE_CENTRE_M, size=2))
-        table = Box.table((cx, cy), (w, length), height)
+        table = _table(rng)
         pose: tuple[float, float, float] | None = None
         objects = None
         if near:
@@ -248,19 +314,70 @@ def random_world(rng: np.random.Generator, *, near: bool | None = None) -> dict[
         }
 
 
+def _paper_world(rng: np.random.Generator) -> dict[str, Any]:
+    """The ``paper`` world (module docstring): the robot anywhere within 2 m of the table,
+    any heading; both objects anywhere on the top."""
+    while True:
+        table = _table(rng)
+        cx, cy, top = table.center_m[0], table.center_m[1], table.top_z_m
+        hx, hy = table.half_extents_m[0], table.half_extents_m[1]
+        for _ in range(1000):
+            x, y = (float(v) for v in rng.uniform(-ROOM_HALF_M, ROOM_HALF_M, size=2))
+            pose = (x, y, float(rng.uniform(-math.pi, math.pi)))
+            if not base_in_room(pose, ROOM_HALF_M) or base_hits_table(pose, table):
+                continue
+            if _footprint_distance(pose, table) <= START_DISTANCE_M:
+                break
+        else:  # pragma: no cover - the table is always small beside the room
+            continue
+        ax, ay = hx - PAPER_OBJECT_MARGIN_M, hy - PAPER_OBJECT_MARGIN_M
+        z = float(top) + OBJECT_HALF_EXTENTS_M[2]
+        for _ in range(1000):
+            xs = rng.uniform(cx - ax, cx + ax, size=2)
+            ys = rng.uniform(cy - ay, cy + ay, size=2)
+            if math.hypot(xs[0] - xs[1], ys[0] - ys[1]) >= PAPER_OBJECT_GAP_M:
+                break
+        else:  # pragma: no cover - the smallest top holds two objects 12 cm apart easily
+            continue
+        objects = [(float(xs[i]), float(ys[i]), z) for i in (0, 1)]
+        return {
+            "table_world": table,
+            "object_positions_world": dict(zip(OBJECT_NAMES, objects, strict=True)),
+            "base_pose_world": pose,
+            "near": None,
+        }
+
+
+def random_world(rng: np.random.Generator, *, near: bool | None = None,
+                 world: World = "facing") -> dict[str, Any]:
+    """One world (module docstring), ``facing`` or ``paper``, drawn from ``rng`` only.
+    ``near`` forces where the robot starts in the ``facing`` world (default: drawn, near
+    with probability :data:`NEAR_FRACTION`); the ``paper`` world has no near or far start
+    (its ``near`` is None) and refuses one."""
+    if world not in WORLDS:
+        raise ValueError(f"stacking: world={world!r} must be one of {list(WORLDS)}")
+    if world == "paper":
+        if near is not None:
+            raise ValueError(f"stacking: near={near!r} does not apply to world='paper' (its "
+                             "robot starts anywhere within 2 m of the table); leave near unset "
+                             "or use world='facing'")
+        return _paper_world(rng)
+    return _facing_world(rng, near)
+
+
 def setup(rng: np.random.Generator, *, p_fail: float = DEFAULT_P_FAIL["sim"],
-          near: bool | None = None) -> Blackboard:
+          near: bool | None = None, world: World = "facing") -> Blackboard:
     """The blackboard of one trial: the world of :func:`random_world`, torso down, grippers
-    empty."""
-    world = random_world(rng, near=near)
+    empty. ``start_near`` is None in the ``paper`` world."""
+    drawn = random_world(rng, near=near, world=world)
     return Blackboard({
         "p_fail": p_fail,
-        "table_world": world["table_world"],
+        "table_world": drawn["table_world"],
         "room_half_m": ROOM_HALF_M,
-        "object_positions_world": world["object_positions_world"],
+        "object_positions_world": drawn["object_positions_world"],
         "object_half_extents_m": {n: OBJECT_HALF_EXTENTS_M for n in OBJECT_NAMES},
-        "base_pose_world": world["base_pose_world"],
-        "start_near": world["near"],
+        "base_pose_world": drawn["base_pose_world"],
+        "start_near": drawn["near"],
         "torso_height_m": 0.0,
         "arm_in_use": None,
         "held_object_left": None,
@@ -295,13 +412,14 @@ def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
 
 def register(
     registry: Registry, *, move_to_reach: str | Path = MOVE_TO_REACH_FILE,
-    network: Topology = "layered", kinematic: bool = True,
+    network: Topology = "layered", kinematic: bool = True, shortcut: bool = True,
 ) -> None:
     """The stacking skills (``--skills examples.stacking``): the ``sim`` ones and MoveToReach,
     plus, with ``kinematic``, the PR2 twins of GraspParam, MoveGripperToStack and
-    OpenGripper."""
+    OpenGripper. ``shortcut``: MoveToReach succeeds without moving when its target is
+    already in reach (:class:`skillcompose.skills.stacking.MoveToReach`)."""
     skills_stacking.register(registry, move_to_reach=move_to_reach, topology=network,
-                             kinematic=kinematic)
+                             kinematic=kinematic, shortcut=shortcut)
     if kinematic:
         from skillcompose.skills import kinematic as skills_kinematic
         from skillcompose.skills.kinematic_world import KinematicWorld
@@ -315,6 +433,7 @@ def register(
 def make_task(
     *, backend: str = "sim", p_fail: float | None = None, trials: int = 3,
     step_limit: int = 15, move_to_reach: str | None = None, network: str = "layered",
+    world: str = "facing",
 ) -> Task:
     """The stacking task; see the module's docstring for the settings."""
     if backend not in BACKENDS:
@@ -339,22 +458,26 @@ def make_task(
         raise TaskError(f"stacking: setting move_to_reach={move_to_reach!r} is not a file; "
                         "give the evolved move-to-push FSA, e.g. "
                         "move_to_reach=examples/move_to_reach.fsa.yaml")
+    if world not in WORLDS:
+        raise TaskError(f"stacking: setting world={world!r} must be one of "
+                        f"{list(WORLDS)}, e.g. world=paper")
+    chosen: World = "paper" if world == "paper" else "facing"
     registry = Registry(backend=backend)
     register(registry, move_to_reach=reach_file, network=network,  # type: ignore[arg-type]
-             kinematic=backend == "kinematic")
+             kinematic=backend == "kinematic", shortcut=chosen != "paper")
     p = float(p_fail)
 
-    def world(rng: np.random.Generator) -> Blackboard:
-        return setup(rng, p_fail=p)
+    def draw(rng: np.random.Generator) -> Blackboard:
+        return setup(rng, p_fail=p, world=chosen)
 
     settings: dict[str, Any] = {"backend": backend, "p_fail": p, "trials": trials,
-                                "step_limit": step_limit, "network": network}
+                                "step_limit": step_limit, "network": network, "world": world}
     if move_to_reach is not None:
         settings["move_to_reach"] = str(move_to_reach)
     return Task(
         name="stacking",
         registry=registry,
-        setup=world,
+        setup=draw,
         fitness=fitness,
         minimize=True,
         target=0.0,

@@ -48,10 +48,11 @@ key                             meaning
   its own registry (:func:`reach_registry`): RecogniseObject writes that target to
   ``object_location_world``, MoveBase is section 4.2's network, and Push is a check that
   moves nothing (:func:`reach_check`: the classifier on ``sim``, IK on ``kinematic``) of
-  the point of :func:`reach_goal` by an arm of :func:`reach_arms`. The same check, as a
-  one-state FSA, runs first: when the target is already in reach MoveToReach succeeds
-  without moving (the evolved network never started in reach in section 4.2, and from
-  there it drove the robot away). It shares the caller's
+  the point of :func:`reach_goal` by an arm of :func:`reach_arms`. By default
+  (``shortcut``) the same check, as a one-state FSA, runs first: when the target is already
+  in reach MoveToReach succeeds without moving (the evolved network never started in reach
+  in section 4.2, and from there it drove the robot away); with ``shortcut=False`` the
+  nested FSA runs whatever the start (as the paper's MoveToReach). It shares the caller's
   blackboard and generator and counts as one step of the caller; its own steps are bounded
   by its file's ``step_limit``. A held object moves with the base, and the arm in use stays
   the arm that holds it.
@@ -396,11 +397,13 @@ def reach_registry(topology: Topology = "layered", *, kinematic: bool = True) ->
 
 class MoveToReach(Skill):
     """A nested FSA (:class:`skillcompose.nested.FSASkill`) behind a random failure with the
-    blackboard's ``p_fail``; a held object moves with the base (module docstring)."""
+    blackboard's ``p_fail``; a held object moves with the base (module docstring). With
+    ``shortcut`` (default) it succeeds without running the nested FSA when the target is
+    already in reach; without, the nested FSA always runs."""
 
-    __slots__ = ("guard", "nested")
+    __slots__ = ("guard", "nested", "shortcut")
 
-    def __init__(self, nested: FSASkill) -> None:
+    def __init__(self, nested: FSASkill, *, shortcut: bool = True) -> None:
         spec = nested.spec
         reads = spec.reads | {"p_fail", "object_positions_world", "gripper_position_world",
                               *_ROBOT}
@@ -409,21 +412,23 @@ class MoveToReach(Skill):
         super().__init__(SkillSpec(
             name="MoveToReach", outcomes=("success", "failure"), params=(),
             reads=frozenset(reads), writes=frozenset(writes), key_types=dict(spec.key_types),
-            doc=f"MoveToReach: {spec.doc}, failing at random with p_fail",
+            doc=f"MoveToReach: {spec.doc}, failing at random with p_fail"
+                + ("" if shortcut else ", run even when the target is already in reach"),
         ), None, backend="default")
         self.nested = nested
+        self.shortcut = shortcut
         self.guard = fsa_skill(FSA({"InReach": State("Push", transitions={
             "success": "success", "failure": "failure"})}, start="InReach",
             name="InReach"), nested.registry, name="InReach")
 
     def bind(self, registry: Any = None, backend: str | None = None) -> SkillFn:
         run = self.nested.bind(None, backend)
-        in_reach = self.guard.bind(None, backend)
+        in_reach = self.guard.bind(None, backend) if self.shortcut else None
 
         def move_to_reach(bb: Blackboard, rng: np.random.Generator) -> str:
             if _random_failure(bb, rng):
                 return "failure"
-            if in_reach(bb, rng) == "success":
+            if in_reach is not None and in_reach(bb, rng) == "success":
                 return "success"  # already in reach: nothing to move
             holding = held(bb)
             before = (bb.get("base_pose_world") or (0.0, 0.0, 0.0),
@@ -463,11 +468,13 @@ def _carry(bb: Blackboard, holding: tuple[Arm, str], position_before: Vec3,
 
 
 def make_move_to_reach(
-    path: str | Path, *, topology: Topology = "layered", kinematic: bool = True
+    path: str | Path, *, topology: Topology = "layered", kinematic: bool = True,
+    shortcut: bool = True,
 ) -> MoveToReach:
     """MoveToReach from an evolved move-to-push FSA file (``examples/move_to_reach.fsa.yaml``):
     validated against :func:`reach_registry` when loaded; its ``timeout`` becomes
-    ``failure``."""
+    ``failure``. ``shortcut``: succeed without moving when the target is already in reach
+    (:class:`MoveToReach`)."""
     machine = load_fsa(path)
     if sorted(machine.terminals) != ["failure", "success"]:  # else renamed ends go unseen
         at = machine.source.at("terminals") if machine.source is not None else ""
@@ -478,17 +485,18 @@ def make_move_to_reach(
         )
     nested = fsa_skill(machine, reach_registry(topology, kinematic=kinematic),
                        name="MoveToReach", on_timeout="failure")
-    return MoveToReach(nested)
+    return MoveToReach(nested, shortcut=shortcut)
 
 
 def register(
     registry: Registry, *, move_to_reach: str | Path | None = None,
-    topology: Topology = "layered", kinematic: bool = True,
+    topology: Topology = "layered", kinematic: bool = True, shortcut: bool = True,
 ) -> None:
     """Add the stacking skills (``sim`` backend, plus the two shared by both backends) and,
-    given its file, MoveToReach."""
+    given its file, MoveToReach (``shortcut``: see :class:`MoveToReach`)."""
     for s in (recognise_objects, grasp_param, move_gripper_to_stack, open_gripper,
               check_success):
         registry.add(s)
     if move_to_reach is not None:
-        registry.add(make_move_to_reach(move_to_reach, topology=topology, kinematic=kinematic))
+        registry.add(make_move_to_reach(move_to_reach, topology=topology, kinematic=kinematic,
+                                        shortcut=shortcut))
