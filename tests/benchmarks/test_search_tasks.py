@@ -90,6 +90,7 @@ def test_koza_effort_by_hand() -> None:
     assert lo <= 3500 <= hi
 
 
+@pytest.mark.slow  # evolves every benchmark task: about 3 s
 def test_quick_run_writes_its_report(tmp_path: Path) -> None:
     assert bench_search.main(["--quick", "--workers", "1", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "search.md").read_text(encoding="utf-8")

@@ -165,16 +165,15 @@ def test_run_with_a_task_uses_the_tasks_step_limit(
 
 # -- items 14 and 15: time limits, fault counts, the same on every backend -----------------
 @pytest.mark.slow
+@pytest.mark.timeout(120)  # a hang guard: the skill hangs for good without the limit
 def test_a_hanging_skill_times_out_the_same_on_every_backend(tmp_path: Path) -> None:
     task = load_task(FAULTY, fault="hang", p_fault=0.3)
     cfg = SMALL.replace(eval_time_limit=0.2, generations=1)
     runs = []
     for backend, workers in (("serial", 1), ("process", 1), ("process", 2)):
-        t = time.perf_counter()
         result = evolve(task, cfg, seed=4, backend=backend, workers=workers,
                         simplify_result=False, check_trials=0,
                         out_dir=tmp_path / f"{backend}{workers}")
-        assert time.perf_counter() - t < 30
         runs.append(result)
     timeouts = [r.faults["timeouts"] for r in runs[0].history]
     assert sum(timeouts) > 0
@@ -185,6 +184,7 @@ def test_a_hanging_skill_times_out_the_same_on_every_backend(tmp_path: Path) -> 
     assert info["result"]["faults"]["timeouts"] == sum(timeouts)
 
 
+@pytest.mark.timeout(60)  # a hang guard: the stuck worker never returns unless killed
 def test_a_worker_stuck_past_the_limit_is_killed() -> None:
     """A skill the alarm cannot reach (SIGALRM blocked): the parent kills its worker after
     the limit and a grace period; only that job scores worst, as a time-out."""
@@ -195,9 +195,7 @@ def test_a_worker_stuck_past_the_limit_is_killed() -> None:
     ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=2,
                           limits=EvalLimits(time_limit=0.2))
     try:
-        t = time.perf_counter()
-        out = ev.evaluate(jobs)
-        assert time.perf_counter() - t < 10
+        out = ev.evaluate(jobs)  # returns at all: the stuck worker was killed
         assert out[1] == task.worst and [out[0], out[2], out[3]] == expected
         assert ev.faults.timeouts == 1 and ev.faults.worker_deaths == 0
         assert ev.evaluate(jobs[:1]) == expected[:1]  # a fresh worker took its place

@@ -25,6 +25,7 @@ def _task(p_fail: float = 0.3) -> Task:
     return load_task("examples.toy_task", p_fail=p_fail)
 
 
+@pytest.mark.slow  # the default preset's population of 600: about 1.5 s
 def test_the_default_preset_solves_only_when_the_exported_fsa_holds() -> None:
     task = _task()
     result = evolve(task, seed=1)  # no config: the default preset for this task
@@ -53,6 +54,7 @@ def test_a_candidate_that_does_not_hold_is_demoted_and_evolution_goes_on(
         assert result.fresh["kind"] == "measured"
 
 
+@pytest.mark.slow  # two runs: about 1.5 s
 def test_a_run_with_holds_resumes_to_the_same_result(tmp_path: Path) -> None:
     task = _task(0.4)
     full = evolve(task, LUCKY, seed=2, out_dir=tmp_path / "full", simplify_trials=30)

@@ -284,6 +284,7 @@ def test_schema_accepts_what_we_write(registry: Registry) -> None:
         jsonschema.validate(doc, schema)
 
 
+@pytest.mark.timeout(60)  # a hang guard: the state hangs for good without its limit
 def test_time_limit_in_a_file_stops_a_hanging_state(tmp_path: Path) -> None:
     @skill
     def hang(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
@@ -306,13 +307,12 @@ def test_time_limit_in_a_file_stops_a_hanging_state(tmp_path: Path) -> None:
     assert fsa.states["Hang"].time_limit == 0.2
     assert loads_fsa(dumps_fsa(fsa.with_params("Hang"))) == fsa  # survives a save
     compiled = compile_fsa(fsa, registry)
-    t0 = time.perf_counter()
-    result = compiled.run(None, 0)
-    assert result.outcome == "timeout" and time.perf_counter() - t0 < 2.0
+    result = compiled.run(None, 0)  # the skill hangs: only the file's limit ends the run
+    assert result.outcome == "timeout"
     from skillcompose import run_ticking
 
-    t0 = time.perf_counter()  # every tick-wise entry point honours the file's limit too
-    assert run_ticking(compiled).outcome == "timeout" and time.perf_counter() - t0 < 2.0
+    # every tick-wise entry point honours the file's limit too
+    assert run_ticking(compiled).outcome == "timeout"
     with pytest.raises(FSAFileError, match=r"hang\.yaml:6:17: state Hang: time_limit must"):
         loads_fsa(text.replace("0.2", "-1"), "hang.yaml")
 

@@ -7,7 +7,6 @@ parse choked on, unbounded error lists, unbounded step limits and file sizes.
 from __future__ import annotations
 
 import textwrap
-import time
 from pathlib import Path
 
 import pytest
@@ -29,19 +28,16 @@ VALID = textwrap.dedent(
 )
 
 
-SLACK = 6.0
-"""Time bounds are this many times what a quiet 2-core machine needs: they catch what the
-causes did (10 s of scanning, a minute of parsing twice), not a busy neighbour. Speed itself
-is measured by benchmarks, not by tests."""
+pytestmark = pytest.mark.timeout(60)
+"""A hang guard, not a measure: the causes these tests keep out took minutes (10 s of
+scanning, a minute of parsing twice); a file at the limits loads in about 0.3 s on a quiet
+2-core machine. Speed itself is measured by benchmarks/bench_runtime.py, not by tests."""
 
 
-def _refused(text: str, seconds: float = 2.0) -> FSAFileError:
-    """The error a text is refused with; every problem located; answered in time."""
-    t0 = time.perf_counter()
+def _refused(text: str) -> FSAFileError:
+    """The error a text is refused with; every problem located."""
     with pytest.raises(FSAFileError) as info:
         loads_fsa(text, "bad.yaml")
-    elapsed = time.perf_counter() - t0
-    assert elapsed < seconds * SLACK, f"took {elapsed:.2f} s"
     err = info.value
     assert err.problems
     for p in err.problems:
@@ -49,22 +45,22 @@ def _refused(text: str, seconds: float = 2.0) -> FSAFileError:
     return err
 
 
-def _only(text: str, seconds: float = 2.0) -> str:
-    return str(_refused(text, seconds))
+def _only(text: str) -> str:
+    return str(_refused(text))
 
 
 # -- 1. nesting --------------------------------------------------------------------------
 @pytest.mark.parametrize("levels", [MAX_DEPTH + 1, 500, 2000, 20_000])
 def test_deep_flow_nesting_is_a_located_error_fast(levels: int) -> None:
     text = VALID + "meta: {a: " + "[" * levels + "]" * levels + "}\n"
-    message = _only(text, seconds=1.0)
+    message = _only(text)
     assert "bad.yaml:8:" in message and "nested" in message
 
 
 @pytest.mark.parametrize("levels", [MAX_DEPTH + 1, 250, 2000])
 def test_deep_block_nesting_is_a_located_error_fast(levels: int) -> None:
     meta = "".join("\n" + "  " * (i + 1) + f"k{i}:" for i in range(levels))
-    message = _only(VALID + "meta:" + meta + " 1\n", seconds=1.0)
+    message = _only(VALID + "meta:" + meta + " 1\n")
     assert "nested" in message and "bad.yaml:" in message
 
 
@@ -180,11 +176,8 @@ def test_a_file_at_the_state_limit_loads_fast(tmp_path: Path) -> None:
     assert len(text.encode()) < MAX_FILE_BYTES
     path = tmp_path / "big.yaml"
     path.write_text(text)
-    t0 = time.perf_counter()
     fsa = load_fsa(path)
-    elapsed = time.perf_counter() - t0
     assert len(fsa.states) == MAX_STATES
-    assert elapsed < 1.5 * SLACK, f"{elapsed:.2f} s"  # about 0.3 s
 
 
 @pytest.mark.parametrize("megabytes", [0.6, 1.4, 5.0])
@@ -192,13 +185,10 @@ def test_a_file_of_megabytes_is_answered_at_once(tmp_path: Path, megabytes: floa
     text = _many_states(int(megabytes * 1e6 / 125))
     path = tmp_path / "huge.yaml"
     path.write_text(text)
-    t0 = time.perf_counter()
     with pytest.raises(FSAFileError) as info:
         load_fsa(path)
-    assert time.perf_counter() - t0 < 0.5 * SLACK
     assert "at most" in str(info.value) and f"{path}:" in str(info.value)
-    t0 = time.perf_counter()
-    _refused(text, seconds=0.5)
+    _refused(text)
 
 
 @pytest.mark.parametrize("item, values", [("1", 1), ("[1]", 2), ("{a: 1}", 3),
@@ -207,12 +197,10 @@ def test_too_many_values_is_one_located_error_fast(item: str, values: int) -> No
     n = MAX_VALUES // values + 1
     text = VALID + "meta: {a: [" + ", ".join([item] * n) + "]}\n"
     if len(text) < MAX_FILE_BYTES:
-        message = _only(text, seconds=1.5)
+        message = _only(text)
         assert f"more than {MAX_VALUES} values" in message and "bad.yaml:8:" in message
     few = VALID + "meta: {a: [" + ", ".join([item] * (n // 2)) + "]}\n"
-    t0 = time.perf_counter()
     loads_fsa(few)
-    assert time.perf_counter() - t0 < 1.5 * SLACK
 
 
 def test_too_many_states_is_one_located_error() -> None:
@@ -299,9 +287,7 @@ def test_vector_parameters_of_many_states_fit_the_bounds() -> None:
     }
     text = dumps_fsa(FSA(states, "MoveBase_0"))
     assert len(text.encode()) > 180_000
-    t0 = time.perf_counter()
     assert len(loads_fsa(text).states) == 70
-    assert time.perf_counter() - t0 < 1.5 * SLACK
 
 
 # -- control characters in the names a file defines ---------------------------------------------

@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import re
 import tempfile
-import time
 from pathlib import Path
 
 import pytest
@@ -37,7 +36,9 @@ SEEDS.append(
 )
 
 EXAMPLES = int(os.environ.get("SKILLCOMPOSE_FUZZ_EXAMPLES", "60"))
-SECONDS = 12.0  # per input; a file at the size limit takes about 0.3 s on a quiet machine
+# a hang guard per test, not a measure: a file at the size limit takes about 0.3 s on a quiet
+# machine (benchmarks/bench_runtime.py measures speed)
+pytestmark = pytest.mark.timeout(300)
 FUZZ = settings(max_examples=EXAMPLES, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
@@ -153,8 +154,7 @@ def mutated_files(draw: st.DrawFn) -> str:
 
 def _check(read: object, *args: object) -> None:
     """``read(*args)`` returns an FSA or raises FSAFileError with every problem located;
-    within ``SECONDS``. An FSA it returns is written and read back."""
-    t0 = time.perf_counter()
+    An FSA it returns is written and read back."""
     try:
         fsa = read(*args)  # type: ignore[operator]
     except FSAFileError as exc:
@@ -166,8 +166,6 @@ def _check(read: object, *args: object) -> None:
         assert len(str(exc).splitlines()) <= 22
     else:
         loads_fsa(dumps_fsa(fsa))
-    elapsed = time.perf_counter() - t0
-    assert elapsed < SECONDS, f"{elapsed:.2f} s"
 
 
 def test_seed_files_are_valid() -> None:
