@@ -66,6 +66,7 @@ from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from ruamel.yaml.parser import RoundTripParser
 from ruamel.yaml.reader import ReaderError
 from ruamel.yaml.representer import RoundTripRepresenter
+from ruamel.yaml.scalarstring import DoubleQuotedScalarString
 
 from .errors import FSAFileError, FSAValidationError, ParamError, Problem, UnknownSkillError, clip
 from .files import NotARegularFile, atomic_write, read_limited
@@ -729,6 +730,9 @@ def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None 
 
     With a ``registry``, parameters of new states carry their unit and range as comments.
     """
+    if not isinstance(fsa, FSA):
+        raise TypeError(f"dumps_fsa takes an FSA, got {clip(repr(fsa), 40)}; read a file "
+                       "with load_fsa or build one with FSA(...)")
     origin = fsa.source
     doc = origin.document() if isinstance(origin, FileOrigin) else None
     if isinstance(doc, CommentedMap) and isinstance(origin, FileOrigin):
@@ -787,8 +791,26 @@ def _dump(doc: Any) -> str:
     yaml.indent(mapping=2, sequence=4, offset=2)
     yaml.width = 100
     buf = io.StringIO()
-    yaml.dump(doc, buf)
+    yaml.dump(_unfoldable(doc), buf)
     return buf.getvalue()
+
+
+def _unfoldable(node: Any) -> Any:
+    """``node`` with every plain string that holds a run of spaces double-quoted: the emitter
+    folds a long plain string at its spaces, and reading it back turns a folded run of spaces
+    into one (``"x" + 120 spaces + "y"`` came back as ``"x y"``); a double-quoted string is
+    folded with escapes that keep every space."""
+    if isinstance(node, (CommentedMap, CommentedSeq)):  # in place: comments stay
+        for key, value in (node.items() if isinstance(node, CommentedMap) else
+                           enumerate(node)):
+            node[key] = _unfoldable(value)
+    elif type(node) is dict:
+        return {key: _unfoldable(value) for key, value in node.items()}
+    elif type(node) is list:
+        return [_unfoldable(value) for value in node]
+    elif type(node) is str and ("  " in node or node != node.strip(" ")):
+        return DoubleQuotedScalarString(node)
+    return node
 
 
 def _yaml_fix(what: str, text: str, mark: Any) -> str:
@@ -819,6 +841,9 @@ def save_fsa(
 ) -> FSA:
     """Write ``fsa`` to ``path`` atomically, keeping the mode of the file it replaces (a new
     file gets the umask's); return it bound to that file for later saves."""
+    if Path(path).is_dir():
+        raise IsADirectoryError(f"{path} is a folder: give save_fsa a file path, e.g. "
+                       f"{Path(path) / 'fsa.yaml'}")
     text = dumps_fsa(fsa, registry, header=header)
     atomic_write(path, text.encode("utf-8"))
     return loads_fsa(text, str(Path(path)))

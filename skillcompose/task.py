@@ -217,9 +217,29 @@ class Task:
                                 f"{me}: {field_} = {clip(repr(value), 40)}: expected a tuple "
                                 f"of skill names, e.g. {field_}=('Carry',)")
             object.__setattr__(self, field_, tuple(value))
+        if not isinstance(self.registry, Registry):
+            raise TaskError(f"{me}: registry = {clip(repr(self.registry), 40)}: expected a "
+                            "skillcompose.Registry holding the task's skills")
         if isinstance(self.target, bool) or not isinstance(self.target, numbers.Real) or \
-                self.target != self.target:  # NaN (and no float() of a huge whole number)
-            raise TaskError(f"{me}: target = {clip(repr(self.target), 40)}: expected a number")
+                self.target != self.target or self.target in (math.inf, -math.inf):
+            # NaN, and an infinite target every fitness reaches (solved in generation 0)
+            raise TaskError(f"{me}: target = {clip(repr(self.target), 40)}: expected a "
+                            "finite number")
+        worst = self.error_fitness
+        if worst is not None and (isinstance(worst, bool) or not isinstance(
+                worst, numbers.Real) or worst != worst):
+            raise TaskError(f"{me}: error_fitness = {clip(repr(worst), 40)}: expected a "
+                            "number (inf or -inf for the worst), or None")
+        if not isinstance(self.settings, Mapping) or not all(
+                isinstance(k, str) for k in self.settings):
+            raise TaskError(f"{me}: settings = {clip(repr(self.settings), 40)}: expected a "
+                            "mapping of setting names to values, e.g. {'p_fail': 0.2}")
+        if self.backend is not None:
+            known = sorted({b for n in self.registry.names()
+                            for b in self.registry.backends(n)})
+            if not isinstance(self.backend, str) or self.backend not in known:
+                raise TaskError(f"{me}: backend = {clip(repr(self.backend), 40)}: no skill "
+                                f"of its registry has it; choose one of {known or 'none'}")
         rate = self.success_rate
         if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or \
                 not 0.0 < float(rate) < 1.0:

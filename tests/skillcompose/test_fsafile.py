@@ -29,6 +29,8 @@ from skillcompose import (
 )
 from skillcompose.fsafile import STATE_KEYS, TOP_LEVEL_KEYS
 
+REFERENCE = Path(__file__).resolve().parents[2] / "examples" / "pour_water_reference.fsa.yaml"
+
 HAND_WRITTEN = textwrap.dedent(
     """\
     # Pour water, by hand.
@@ -354,3 +356,26 @@ def test_loads_fsa_takes_text() -> None:
     with pytest.raises(TypeError, match=r"loads_fsa takes the file's text \(str\), got bytes; "
                        r"decode it"):
         loads_fsa(b"format: 1\n")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("text", ["x" + " " * 120 + "y", "a  b " * 40, " leading",
+                                  "trailing ", "tab\tand  two spaces " * 10])
+def test_strings_round_trip_exactly_through_save_and_load(text: str, tmp_path: Path) -> None:
+    """A long string with a run of spaces used to be folded at them and read back with one
+    space; every string comes back as it was, in a new file and in an edited one."""
+    fsa = loads_fsa(REFERENCE.read_text(encoding="utf-8"))
+    edited = fsa.replace(meta={**fsa.meta, "note": text, "deep": {"list": [text]}})
+    back = save_fsa(edited, tmp_path / "a.yaml")
+    assert load_fsa(tmp_path / "a.yaml").meta["note"] == text
+    assert back.meta["deep"] == {"list": [text]}
+    fresh = FSA({"A": State("X", transitions={"success": "success"})}, start="A",
+                meta={"note": text})
+    assert loads_fsa(dumps_fsa(fresh)).meta == {"note": text}
+
+
+def test_dumps_and_save_say_what_they_take(tmp_path: Path) -> None:
+    with pytest.raises(TypeError, match=r"dumps_fsa takes an FSA, got None"):
+        dumps_fsa(None)  # type: ignore[arg-type]
+    fsa = loads_fsa(REFERENCE.read_text(encoding="utf-8"))
+    with pytest.raises(IsADirectoryError, match=r"is a folder: give save_fsa a file path"):
+        save_fsa(fsa, tmp_path)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -31,7 +32,7 @@ def toy() -> Task:
     ({"deterministic": 1}, "deterministic = 1: expected True or False"),
     ({"skills": "Carry"}, "skills = 'Carry': expected a tuple of skill names"),
     ({"terminals": "success"}, "terminals = 'success': expected a tuple of names"),
-    ({"target": "0"}, "target = '0': expected a number"),
+    ({"target": "0"}, "target = '0': expected a finite number"),
     ({"setup": None}, "setup = None: expected a function"),
 ])
 def test_a_field_out_of_its_kind_is_refused_when_the_task_is_made(
@@ -115,3 +116,23 @@ def test_compiling_and_running_take_what_they_say(toy: Task) -> None:
     with pytest.raises(TypeError, match=r"a run takes a Blackboard \(or None\), got dict; "
                        r"wrap it: Blackboard"):
         compiled.run({"p_fail": 0.0})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("field", "value", "says"), [
+    ("registry", None, "registry = None: expected a skillcompose.Registry"),
+    ("backend", "nope", "backend = 'nope': no skill of its registry has it; choose one of"),
+    ("target", math.inf, "target = inf: expected a finite number"),
+    ("target", -math.inf, "target = -inf: expected a finite number"),
+    ("error_fitness", "bad", "error_fitness = 'bad': expected a number"),
+    ("error_fitness", math.nan, "error_fitness = nan: expected a number"),
+    ("settings", [1], "settings = [1]: expected a mapping of setting names"),
+    ("settings", {1: 2}, "settings = {1: 2}: expected a mapping"),
+    ("success_rate", 1, "success_rate = 1: expected a rate between 0 and 1"),
+])
+def test_more_fields_are_checked_where_the_task_is_made(field: str, value: object,
+                                                         says: str) -> None:
+    task = load_task("examples.toy_task")
+    fields = {"name": "t", "registry": task.registry, "setup": task.setup,
+              "fitness": task.fitness, field: value}
+    with pytest.raises(TaskError, match=re.escape(says)):
+        Task(**fields)  # type: ignore[arg-type]
