@@ -59,11 +59,13 @@ def _locate(part: str, search: list[str]) -> tuple[Path | None, list[str]] | Non
 
 def import_path(top: str) -> list[str]:
     """``sys.path`` as the runtime's import of a module whose top-level name is ``top``
-    sees it: the current directory added, and the checkout's root when only it has
-    ``top``."""
+    sees it: the current directory added when ``top`` is there (as ``python -m`` would find
+    it; a folder that does not hold the module named adds nothing, so a received folder's
+    stray ``winreg.py`` is never found by a library's optional import), and the checkout's
+    root when only it has ``top``."""
     path = [p or os.getcwd() for p in sys.path]
     cwd = os.getcwd()
-    if cwd not in path:
+    if cwd not in path and _locate(top, [cwd]) is not None:
         path.append(cwd)
     root = str(SOURCE_ROOT)
     if root not in path and top not in sys.modules and top not in sys.builtin_module_names \

@@ -321,3 +321,25 @@ def test_every_single_bit_flip_is_detected(run_dir: Path) -> None:
             rd.parse_checkpoint(bytes(flipped))
         assert "\n" not in str(info.value)
         flipped[bit // 8] ^= 1 << (bit % 8)
+
+
+def test_resuming_from_inside_a_received_folder_imports_nothing_from_it(
+        run_dir: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """`cd received && skillcompose evolve --resume .`: modules a library may try to import
+    (matplotlib tries `import winreg`) placed in the folder are never imported, during the
+    resume or after it."""
+    marker = run_dir.parent / "ran"
+    for name in ("winreg", "pyecharts", "_winapi_stray"):
+        (run_dir / f"{name}.py").write_text(EVIL.format(marker=str(marker)), encoding="utf-8")
+    monkeypatch.chdir(run_dir)
+    monkeypatch.setattr("sys.path", [p for p in __import__("sys").path if p not in ("", ".")])
+    code, err = _resume(Path("."), capsys)
+    assert code == 0, err
+    assert not marker.exists()
+    import importlib.util
+    import sys
+
+    assert str(run_dir) not in sys.path and "" not in sys.path
+    assert importlib.util.find_spec("_winapi_stray") is None
+    assert not marker.exists()
