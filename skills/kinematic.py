@@ -107,7 +107,7 @@ from skillcompose.skills.pour_water import (
     Roll,
     Yaw,
 )
-from skillcompose.skills.stacking import StackDX, StackDY, StackDZ, Which, landing_z
+from skillcompose.skills.stacking_world import StackDX, StackDY, StackDZ, Which, landing_z
 
 __all__ = [
     "BACKEND",

@@ -64,13 +64,13 @@ number and fails when it is below ``p_fail``; one whose preconditions fail draws
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 
-from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, Skill, skill
+from skillcompose import Blackboard, BlackboardKeyError, Registry, Skill, skill
 from skillcompose.errors import RegistryError
 from skillcompose.fsa import FSA, State
 from skillcompose.fsafile import load_fsa
@@ -78,8 +78,31 @@ from skillcompose.nested import FSASkill, fsa_skill
 from skillcompose.robots.collision import Box
 from skillcompose.skill import SkillFn, SkillSpec
 from skillcompose.skills import move_to_push as skills_push
-from skillcompose.skills.move_to_push import ARM_CODES, classifier_label
+from skillcompose.skills.move_to_push import ARM_CODES
 from skillcompose.skills.network import Topology
+from skillcompose.skills.stacking_world import (
+    DEFAULT_HALF_EXTENTS_M,
+    HELD_KEYS,
+    STACK_TOLERANCE_M,
+    TOUCH_M,
+    Arm,
+    StackDX,
+    StackDY,
+    StackDZ,
+    Vec3,
+    Which,
+    as_vec3,
+    held,
+    landing_z,
+    object_boxes,
+    reach_arms,
+    reach_goal,
+    reach_label,
+    reach_target,
+    stacked,
+    supports,
+    which_name,
+)
 
 __all__ = [
     "DEFAULT_HALF_EXTENTS_M",
@@ -101,96 +124,10 @@ __all__ = [
     "stacked",
 ]
 
-Vec3 = tuple[float, float, float]
-Arm = Literal["left", "right"]
-
-HELD_KEYS: dict[Arm, str] = {"left": "held_object_left", "right": "held_object_right"}
-DEFAULT_HALF_EXTENTS_M: Vec3 = (0.03, 0.03, 0.06)
-"""Half sizes of an object that ``object_half_extents_m`` does not list [m]."""
-STACK_TOLERANCE_M = 0.01
-"""An object stands on another when its bottom is this close to the other's top [m]."""
-_TOUCH_M = 0.002  # boxes may touch (stacked) within this much overlap
-_ARMS: tuple[Arm, Arm] = ("left", "right")
 _LABEL_ARMS: dict[int, Arm] = {code: arm for arm, code in ARM_CODES.items()}  # type: ignore[misc]
-
-Which = Annotated[float, Param(0.0, 1.0, doc="> 0.5: the first object, else the second")]
-StackDX = Annotated[float, Param(-0.2, 0.2, unit="m", doc="x offset from the object")]
-StackDY = Annotated[float, Param(-0.2, 0.2, unit="m", doc="y offset from the object")]
-StackDZ = Annotated[float, Param(0.0, 0.3, unit="m", doc="z offset from the object")]
-"""GraspParam's and MoveGripperToStack's parameters, declared once for both backends."""
 _WHICH = Which
 _WORLD = ("object_positions_world", "object_half_extents_m", "table_world")
 _ROBOT = ("base_pose_world", "torso_height_m", "arm_in_use", *HELD_KEYS.values())
-
-
-# -- the world, shared with the task -------------------------------------------------------
-def _vec3(values: Sequence[float]) -> Vec3:
-    return (float(values[0]), float(values[1]), float(values[2]))
-
-
-def held(bb: Blackboard) -> tuple[Arm, str] | None:
-    """(arm, object) of the gripper holding an object, or None."""
-    for arm in _ARMS:
-        name = bb.get(HELD_KEYS[arm])
-        if name is not None:
-            return arm, str(name)
-    return None
-
-
-def object_boxes(bb: Blackboard) -> dict[str, Box]:
-    """Each object as an upright box at its current position."""
-    sizes: Mapping[str, Sequence[float]] = bb.get("object_half_extents_m") or {}
-    return {
-        name: Box(_vec3(p), _vec3(sizes.get(name, DEFAULT_HALF_EXTENTS_M)), 0.0, name)
-        for name, p in bb["object_positions_world"].items()
-    }
-
-
-def _which_name(bb: Blackboard, which: float) -> str | None:
-    names = list(bb.get("object_positions_world") or {})
-    if len(names) < 2:
-        return None
-    return str(names[0] if which > 0.5 else names[1])
-
-
-def _supports(lower: Box, upper: Box) -> bool:
-    """Whether ``upper`` stands on ``lower``: bottom on top, centre over the top face."""
-    gap = (upper.center_m[2] - upper.half_extents_m[2]) - (
-        lower.center_m[2] + lower.half_extents_m[2])
-    return abs(gap) <= STACK_TOLERANCE_M and all(
-        abs(upper.center_m[i] - lower.center_m[i]) <= lower.half_extents_m[i] for i in (0, 1)
-    )
-
-
-def stacked(bb: Blackboard) -> bool:
-    """Whether one object stands on another and no gripper holds either."""
-    if held(bb) is not None:
-        return False
-    boxes = list(object_boxes(bb).values())
-    return any(_supports(a, b) for a in boxes for b in boxes if a is not b)
-
-
-def reach_target(bb: Blackboard) -> tuple[str, Vec3] | None:
-    """What MoveToReach moves the robot to: with an object held, the other object (where it
-    will be stacked); empty-handed, the object GraspParam last tried to grasp
-    (``grasp_target``), else the first. None without two objects."""
-    positions = bb.get("object_positions_world") or {}
-    names = list(positions)
-    if len(names) < 2:
-        return None
-    holding = held(bb)
-    if holding is None:
-        tried = bb.get("grasp_target")
-        name = tried if tried in positions else names[0]
-    else:
-        name = names[1] if holding[1] == names[0] else names[0]
-    return str(name), _vec3(positions[name])
-
-
-def _label(bb: Blackboard, position: Sequence[float]) -> int:
-    base = bb.get("base_pose_world") or (0.0, 0.0, 0.0)
-    return classifier_label(base, float(bb.get("torso_height_m", 0.0)), position)
-
 
 def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
     return bool(rng.random() < float(bb.get("p_fail", 0.0)))
@@ -202,7 +139,7 @@ def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
 def recognise_objects(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
     """Find both objects on the table: their positions go to ``object_locations_world``."""
     bb["object_locations_world"] = {
-        str(n): _vec3(p) for n, p in bb["object_positions_world"].items()
+        str(n): as_vec3(p) for n, p in bb["object_positions_world"].items()
     }
     return "success"
 
@@ -216,20 +153,20 @@ def grasp_param(
     bb: Blackboard, rng: np.random.Generator, *, which: _WHICH = 1.0
 ) -> Literal["success", "failure"]:
     """Grasp the first (``which`` > 0.5) or the second object (module docstring)."""
-    name = _which_name(bb, which)
+    name = which_name(bb, which)
     if name is None or bb.get("object_locations_world") is None or held(bb) is not None:
         return "failure"
     bb["grasp_target"] = name
     boxes = object_boxes(bb)
-    if any(_supports(boxes[name], b) for n, b in boxes.items() if n != name):
+    if any(supports(boxes[name], b) for n, b in boxes.items() if n != name):
         return "failure"  # the other object stands on it
-    label = _label(bb, boxes[name].center_m)
+    label = reach_label(bb, boxes[name].center_m)
     if label == 0 or _random_failure(bb, rng):
         return "failure"
     arm = _LABEL_ARMS[label]
     bb[HELD_KEYS[arm]] = name
     bb["arm_in_use"] = arm
-    bb["gripper_position_world"] = _vec3(boxes[name].center_m)
+    bb["gripper_position_world"] = as_vec3(boxes[name].center_m)
     bb["objects_grasped"] = (*(bb.get("objects_grasped") or ()), name)
     return "success"
 
@@ -248,7 +185,7 @@ def move_gripper_to_stack(
     dz: StackDZ = 0.1,
 ) -> Literal["success", "failure"]:
     """Move the gripper to the chosen object's centre + (dx, dy, dz) (module docstring)."""
-    name = _which_name(bb, which)
+    name = which_name(bb, which)
     if name is None or bb.get("object_locations_world") is None:
         return "failure"
     holding = held(bb)
@@ -266,11 +203,11 @@ def move_gripper_to_stack(
         return "failure"
     if holding is not None:
         carried = boxes[holding[1]]
-        moved = Box(goal, tuple(max(h - _TOUCH_M, 1e-4)  # type: ignore[arg-type]
+        moved = Box(goal, tuple(max(h - TOUCH_M, 1e-4)  # type: ignore[arg-type]
                                 for h in carried.half_extents_m), 0.0, carried.name)
         if any(moved.overlaps(b) for b in solid):
             return "failure"
-    label = _label(bb, goal)
+    label = reach_label(bb, goal)
     if label == 0 or (holding is not None and _LABEL_ARMS[label] != holding[0]):
         return "failure"
     if _random_failure(bb, rng):
@@ -282,20 +219,6 @@ def move_gripper_to_stack(
         positions[holding[1]] = goal
         bb["object_positions_world"] = positions
     return "success"
-
-
-def landing_z(box: Box, others: Sequence[Box]) -> float:
-    """Centre height of ``box`` dropped straight down onto the highest surface under it
-    (the floor at z = 0 else): OpenGripper's rule on both backends."""
-    bottom = box.center_m[2] - box.half_extents_m[2]
-    surfaces = [0.0]
-    for other in others:
-        overlap = all(abs(box.center_m[i] - other.center_m[i])
-                      < box.half_extents_m[i] + other.half_extents_m[i] for i in (0, 1))
-        top = other.center_m[2] + other.half_extents_m[2]
-        if overlap and top <= bottom + _TOUCH_M:
-            surfaces.append(top)
-    return max(surfaces) + box.half_extents_m[2]
 
 
 @skill(name="OpenGripper", reads=(*_WORLD, *_ROBOT),
@@ -341,28 +264,6 @@ def recognise_target(bb: Blackboard, rng: np.random.Generator) -> Literal["succe
     return "success"
 
 
-def reach_goal(bb: Blackboard) -> tuple[str, Vec3] | None:
-    """Where MoveToReach must bring the gripper into reach: empty-handed, the centre of the
-    object of :func:`reach_target`; with an object held, the point above that object where the
-    held object's centre stands when it stands on it. None without two objects."""
-    target = reach_target(bb)
-    if target is None:
-        return None
-    name, position = target
-    holding = held(bb)
-    if holding is None:
-        return target
-    boxes = object_boxes(bb)
-    rise = boxes[name].half_extents_m[2] + boxes[holding[1]].half_extents_m[2]
-    return name, (position[0], position[1], position[2] + rise)
-
-
-def reach_arms(bb: Blackboard) -> tuple[Arm, ...]:
-    """The arms that may do the reaching: the one holding an object, else either."""
-    holding = held(bb)
-    return (holding[0],) if holding is not None else _ARMS
-
-
 @skill(name="Push", reads=("object_positions_world", "object_half_extents_m", "grasp_target",
                            *_ROBOT), backend="sim")
 def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
@@ -371,7 +272,7 @@ def reach_check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", 
     goal = reach_goal(bb)
     if goal is None:
         return "failure"
-    label = _label(bb, goal[1])
+    label = reach_label(bb, goal[1])
     return "success" if label and _LABEL_ARMS[label] in reach_arms(bb) else "failure"
 
 
@@ -433,7 +334,7 @@ class MoveToReach(Skill):
             holding = held(bb)
             before = (bb.get("base_pose_world") or (0.0, 0.0, 0.0),
                       float(bb.get("torso_height_m", 0.0)))
-            position = (_vec3(bb["object_positions_world"][holding[1]])
+            position = (as_vec3(bb["object_positions_world"][holding[1]])
                         if holding is not None else None)
             outcome = run(bb, rng)
             if holding is not None and position is not None:
@@ -450,7 +351,7 @@ def _carry(bb: Blackboard, holding: tuple[Arm, str], position_before: Vec3,
     the object with the tool; on ``sim`` (where nothing else moves it) it follows the base."""
     arm, name = holding
     bb["arm_in_use"] = arm
-    position = _vec3(bb["object_positions_world"][name])
+    position = as_vec3(bb["object_positions_world"][name])
     (x0, y0, yaw0), torso0 = before
     x1, y1, yaw1 = bb.get("base_pose_world") or (0.0, 0.0, 0.0)
     torso1 = float(bb.get("torso_height_m", 0.0))

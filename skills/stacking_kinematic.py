@@ -29,7 +29,7 @@ from skillcompose.skills.kinematic_world import (
     read_state,
     scene_world,
 )
-from skillcompose.skills.stacking import held, reach_arms, reach_goal
+from skillcompose.skills.stacking_world import held, reach_arms, reach_goal
 
 __all__ = ["reach_check"]
 

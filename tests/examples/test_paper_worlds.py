@@ -18,7 +18,12 @@ from examples import stacking as stack
 from skillcompose import Blackboard, compile_fsa, loads_fsa
 from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box
 from skillcompose.skills import stacking as skills_stacking
-from skillcompose.skills.move_to_push import base_hits_table, base_in_room, object_in_robot_frame
+from skillcompose.skills.move_to_push import (
+    base_hits_table,
+    base_in_room,
+    classifier_label,
+    object_in_robot_frame,
+)
 from skillcompose.task import TaskError, load_task
 
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
@@ -258,7 +263,7 @@ def test_stacking_paper_world_spreads_over_the_circle_and_the_top() -> None:
     assert len(big) > 100 and len(deep) >= 0.05 * len(big)
     # no start is forced near or far: either both objects are reached at the start, or
     # neither, or one, as it falls
-    labels = [[skills_stacking.classifier_label(w["base_pose_world"], 0.0, p) != 0
+    labels = [[classifier_label(w["base_pose_world"], 0.0, p) != 0
                for p in w["object_positions_world"].values()] for w in worlds[:400]]
     assert {tuple(x) for x in labels} >= {(False, False), (True, True)}
 

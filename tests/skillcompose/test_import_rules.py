@@ -51,12 +51,25 @@ def _part(module: str) -> str:
     raise AssertionError(module)
 
 
-def _imported(module: str, path: Path) -> set[str]:
-    """The package modules ``module`` imports, anywhere in it (under ``TYPE_CHECKING`` too:
-    a type-only import still ties the parts together)."""
+def _type_only(tree: ast.AST) -> set[int]:
+    """The ids of the import statements under ``if TYPE_CHECKING:``."""
+    ids: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            ids.update(id(n) for stmt in node.body for n in ast.walk(stmt))
+    return ids
+
+
+def _imported(module: str, path: Path, *, runtime: bool = False) -> set[str]:
+    """The package modules ``module`` imports, anywhere in it (under ``TYPE_CHECKING`` too,
+    unless ``runtime``: a type-only import still ties the parts together)."""
     package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
     found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    skip = _type_only(tree) if runtime else set()
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
         if isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split(".")[: len(package.split(".")) - node.level + 1]
@@ -104,3 +117,23 @@ def test_the_rules_see_an_import_inside_a_function(tmp_path: Path) -> None:
     assert "skillcompose.cli" in _imported("skillcompose.task", path)
     path.write_text("from ..arguments import whole\n", encoding="utf-8")
     assert "skillcompose.arguments" in _imported("skillcompose.evolve.config", path)
+
+
+@pytest.mark.parametrize("part", sorted(ALLOWED))
+def test_no_part_has_an_import_circle(part: str) -> None:
+    """Within a part, modules import each other in layers when they run (imports inside
+    functions count: the stacking skills and their kinematic twins used to import each
+    other; type-only imports do not)."""
+    import networkx as nx
+
+    graph = nx.DiGraph()
+    for module, path in _MODULES.items():
+        if _part(module) != part or path.name == "__init__.py":
+            continue
+        graph.add_node(module)
+        for target in _imported(module, path, runtime=True):
+            if target in _MODULES and _part(target) == part and target != module and \
+                    _MODULES[target].name != "__init__.py":
+                graph.add_edge(module, target)
+    cycles = list(nx.simple_cycles(graph))
+    assert not cycles, f"import circles in {part}: {cycles}"

@@ -15,6 +15,7 @@ from skillcompose import Blackboard, compile_fsa, load_fsa, loads_fsa
 from skillcompose.executor import trial_rngs
 from skillcompose.robots.collision import Box
 from skillcompose.skills import stacking as st
+from skillcompose.skills.move_to_push import classifier_label
 from skillcompose.task import load_task
 
 EXAMPLES = Path(task_module.__file__).parent
@@ -212,7 +213,7 @@ def test_worlds_need_move_to_reach_in_some_and_not_others() -> None:
     for rng in trial_rngs(5, 60):
         bb = task_module.setup(rng)
         base = bb["base_pose_world"]
-        labels = [st.classifier_label(base, 0.0, p)
+        labels = [classifier_label(base, 0.0, p)
                   for p in bb["object_positions_world"].values()]
         if bb["start_near"]:
             near += 1
