@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from skillcompose.arguments import note
+from skillcompose.arguments import add_output_options, note
+from skillcompose.errors import one_line
 from skillcompose.robots.errors import InvalidConfiguration, RobotModelError
 
 if TYPE_CHECKING:
@@ -41,6 +43,7 @@ def add_robot_cli(subparsers: Any) -> argparse.ArgumentParser:
     show.add_argument("--config", default="tucked", help="neutral, tucked or a JSON file")
     show.add_argument("--out", type=Path, default=Path("robot.png"), help="PNG to write")
     show.set_defaults(func=run_robot_cli)
+    add_output_options(show)  # -q/-v after `robot show` too, as after every command
     return robot
 
 
@@ -111,7 +114,9 @@ def run_robot_cli(args: argparse.Namespace) -> int:
             note(args, f"wrote {out}")  # a note on standard error, as every command's
             return 0
     except RobotModelError as exc:
-        print(f"error: {exc}")
+        print(f"skillcompose robot {args.robot_command}: error: {one_line(str(exc))}",
+              file=sys.stderr)
         return 2
-    print(f"error: unknown robot command {args.robot_command!r}")
+    print(f"skillcompose robot: error: unknown robot command {args.robot_command!r}; "
+          "choose show", file=sys.stderr)
     return 2

@@ -40,4 +40,17 @@ def test_bad_config_key_is_an_error_naming_the_key(
     config.write_text(json.dumps({"torso": 0.1}))
     args = _parse(["robot", "show", "--config", str(config), "--out", str(tmp_path / "x.png")])
     assert run_robot_cli(args) == 2
-    assert "torso_height_m" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("skillcompose robot show: error: ")
+    assert "torso_height_m" in err[0]
+
+
+@pytest.mark.parametrize("flag", ["-q", "-v", "--quiet", "--verbose"])
+def test_output_options_are_taken_after_robot_show(flag: str, tmp_path: Path) -> None:
+    from skillcompose.cli import main
+
+    out = tmp_path / "robot.png"
+    assert main(["robot", "show", flag, "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
