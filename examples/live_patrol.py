@@ -5,7 +5,7 @@ waypoint until it has made ``rounds`` rounds, then docks. Driving and scanning a
 long-running skills (generators that yield ``"running"`` while time passes), so the FSA runs
 tick-wise, and each tick is published to a live file the viewer's Live page watches::
 
-    python -m examples.live_patrol --out live/          # in one terminal
+    python examples/live_patrol.py --out live/          # in one terminal (any folder)
     skillcompose view live/                             # in another; open the Live page
 
 ``--time-scale 0.1`` makes every skill ten times faster (the test runs it that way).
@@ -104,7 +104,7 @@ def run(out: Path, *, rounds: int = 1, time_scale: float = 1.0, period: float = 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m examples.live_patrol", description=__doc__
+    p = argparse.ArgumentParser(prog="python examples/live_patrol.py", description=__doc__
                                 .split("\n")[0])
     p.add_argument("--out", type=Path, default=Path("live"), help="folder of the live file")
     p.add_argument("--rounds", type=int, default=1, choices=range(1, 11), metavar="1..10",

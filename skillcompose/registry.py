@@ -315,11 +315,40 @@ def describe_exception(exc: BaseException) -> str:
     return f"{where}{exception_text(exc)}"
 
 
+def _import_in_package(path: Path) -> ModuleType | None:
+    """A ``.py`` file inside a package (its folder has an ``__init__.py``), imported by its
+    dotted name with the folder above the package on the path for this import only, so that
+    it imports its package as ``python -m`` would (``examples/kinematic_pour.py`` imports
+    ``from examples import pour_water``); None when it is not in a package, or when that name
+    already means another file."""
+    file = path.resolve()
+    parts, folder = [file.stem], file.parent
+    while (folder / "__init__.py").is_file() and folder.name.isidentifier():
+        parts.insert(0, folder.name)
+        folder = folder.parent
+    if len(parts) == 1 or not all(p.isidentifier() for p in parts):
+        return None
+    name = ".".join(parts)
+    loaded = sys.modules.get(name)
+    if loaded is None:
+        top = sys.modules.get(parts[0])
+        if top is not None and not any(
+                Path(p).resolve() == folder / parts[0] for p in getattr(top, "__path__", [])):
+            return None  # the package's name belongs to another folder already
+        with on_path([str(folder), str(file.parent)], first=True):
+            loaded = importlib.import_module(name)
+    origin = getattr(loaded, "__file__", None)
+    return loaded if origin and Path(origin).resolve() == file else None
+
+
 def _import_target(target: str) -> ModuleType:
     if target.endswith(".py") or "/" in target or "\\" in target:
         path = Path(target)
         if not path.is_file():
             raise RegistryError(f"skills module file {target} does not exist")
+        packaged = _import_in_package(path)
+        if packaged is not None:
+            return packaged
         mod_name = "_skillcompose_user_" + path.stem + f"_{abs(hash(str(path.resolve())))}"
         if mod_name in sys.modules:
             return sys.modules[mod_name]

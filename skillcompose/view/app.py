@@ -648,7 +648,7 @@ def _live_page(config: ViewerConfig) -> None:
              f"(files *{LIVE_SUFFIX})") \
         .classes("text-xl font-semibold")
     ui.label("A program publishes with skillcompose.view.live.LivePublisher; try "
-             "python -m examples.live_patrol --out DIR.").classes("text-sm text-slate-500")
+             "python examples/live_patrol.py --out DIR.").classes("text-sm text-slate-500")
     holder = ui.column().classes("w-full gap-4")
     cards: dict[Path, dict[str, Any]] = {}
     empty: dict[str, Any] = {"label": None}

@@ -115,3 +115,26 @@ def test_a_missing_module_is_still_one_line(tmp_path: Path,
     with pytest.raises(RegistryError, match="importable from the current directory"):
         import_target("no_such_module_for_path_test")
     assert sys.path == before
+
+
+def test_a_task_file_inside_a_package_imports_its_package(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`skillcompose evolve examples/kinematic_pour.py` (a path, from any folder): a file in a
+    package imports as `python -m` would import it, by its dotted name."""
+    package = tmp_path / "mypkg_for_path_test"
+    package.mkdir()
+    (package / "__init__.py").write_text("", encoding="utf-8")
+    (package / "base.py").write_text("VALUE = 3\n", encoding="utf-8")
+    (package / "task.py").write_text("from mypkg_for_path_test import base\n"
+                                     "VALUE = base.VALUE\n", encoding="utf-8")
+    monkeypatch.chdir(tmp_path.parent)
+    before = list(sys.path)
+    try:
+        module = import_target(str(package / "task.py"))
+        assert module.VALUE == 3 and module.__name__ == "mypkg_for_path_test.task"
+        assert sys.path == before
+    finally:
+        for name in [m for m in sys.modules if m.startswith("mypkg_for_path_test")]:
+            del sys.modules[name]
+    examples = import_target(str(ROOT / "examples" / "kinematic_pour.py"))
+    assert hasattr(examples, "make_task")
