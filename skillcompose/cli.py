@@ -345,14 +345,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _print_trace(result: Any, out: Any) -> None:
-    from .display import short_value as _short
+    from .display import trace_lines
 
-    for ev in result.trace:
-        print(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}",
-              file=out)
-        for key, (old, new) in ev.changes.items():
-            print(f"        {key}: {_short(old)} => {_short(new)}", file=out)
-    print(f"ended: {result.outcome} after {result.steps} step(s)", file=out)
+    for line in trace_lines(result):
+        print(line, file=out)
 
 
 def _invalid_document(file: str, exc: FSAValidationError) -> dict[str, Any]:

@@ -9,7 +9,7 @@ blackboard (:func:`run_result_html`). Plain HTML, no scripts and nothing fetched
 from __future__ import annotations
 
 import html
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from .blackboard import DELETED
@@ -18,12 +18,25 @@ from .errors import clip
 if TYPE_CHECKING:
     from .executor import RunResult
 
-__all__ = ["html_table", "run_result_html", "short_value"]
+__all__ = ["html_table", "run_result_html", "short_value", "trace_lines"]
 
 
 def short_value(v: Any, width: int = 60) -> str:
     """``repr(v)`` cut to ``width`` characters; a deleted key as ∅."""
     return "∅" if v is DELETED else clip(repr(v), width)
+
+
+def trace_lines(result: RunResult, value: Callable[[Any], str] = short_value) -> list[str]:
+    """A traced run as ``skillcompose run --trace`` prints it: a line per step (state, skill,
+    outcome, where it went), a line per blackboard key it changed (``value`` shows the old
+    and the new value), and how the run ended."""
+    lines = []
+    for ev in result.trace or ():
+        lines.append(f"{ev.step:>4}  {ev.state} ({ev.skill}) -> {ev.outcome} -> {ev.target}")
+        lines += [f"        {key}: {value(old)} => {value(new)}"
+                  for key, (old, new) in ev.changes.items()]
+    lines.append(f"ended: {result.outcome} after {result.steps} step(s)")
+    return lines
 
 
 def html_table(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
