@@ -1,12 +1,13 @@
 """The ``skillcompose`` command line (also ``python -m skillcompose``).
 
-Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. Other packages add
-theirs (``evolve``, ``robustness``, ``robot``, ``view``) through a ``register_cli(subparsers)``
-function in the modules listed in :data:`SUBCOMMAND_MODULES`.
+Subcommands of the runtime: ``run``, ``validate``, ``show``, ``skills``. The other parts add
+theirs (``evolve``, ``robustness``, ``robot``, ``view``), and any installed package may add
+more, through a ``register_cli(subparsers)`` function in a module named by an entry point of
+the group ``skillcompose.commands`` (:func:`subcommand_modules`).
 
 Every subcommand, those added by other packages too, follows the conventions of
 :mod:`skillcompose.arguments` (``-q``/``-v``, which :func:`build_parser` adds to each, and
-``--json``). This module and each one named in :data:`SUBCOMMAND_MODULES` must import
+``--json``). This module and each subcommand module must import
 quickly: heavy packages (Pinocchio, CasADi, matplotlib, Ray) are imported by the command that
 needs them, not by ``register_cli``, so that ``skillcompose --help`` and ``skillcompose
 validate`` answer at once.
@@ -47,7 +48,7 @@ if TYPE_CHECKING:
     from .registry import Registry
     from .task import Task
 
-__all__ = ["SUBCOMMAND_MODULES", "build_parser", "main"]
+__all__ = ["COMMANDS_GROUP", "SUBCOMMAND_MODULES", "build_parser", "main", "subcommand_modules"]
 
 DRAWING_SUFFIXES = (".dot", ".gv", ".mmd", ".mermaid", ".svg", ".png", ".pdf")
 MERMAID_SUFFIXES = (".mmd", ".mermaid")
@@ -65,6 +66,23 @@ SUBCOMMAND_MODULES = (
     "skillcompose.robots.cli",
     "skillcompose.view.cli",
 )
+"""This package's subcommand modules, as its ``skillcompose.commands`` entry points name them
+(used as they are when the package runs from a checkout without being installed)."""
+
+COMMANDS_GROUP = "skillcompose.commands"
+"""The entry-point group of subcommand modules: each offers ``register_cli(subparsers)``;
+another installed package adds its own commands by naming a module here."""
+
+
+def subcommand_modules() -> list[str]:
+    """The modules that add subcommands: every ``skillcompose.commands`` entry point (this
+    package's and other installed packages'), by name; this package's own when it is not
+    installed (a checkout run as ``python -m skillcompose``)."""
+    from importlib import metadata
+
+    found = sorted((ep.name, ep.value) for ep in metadata.entry_points(group=COMMANDS_GROUP))
+    modules = [value.split(":", 1)[0] for _, value in found]
+    return list(dict.fromkeys(modules)) or list(SUBCOMMAND_MODULES)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -136,7 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_json_option(p)
     p.set_defaults(func=cmd_skills)
 
-    for name in SUBCOMMAND_MODULES:
+    for name in subcommand_modules():
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
