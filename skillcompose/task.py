@@ -138,6 +138,10 @@ def _number(value: Any, task: str) -> float:
 class Task:
     """A problem for FSAs: the skills, a random world per trial, and a fitness.
 
+    - ``name``: the task's name, written into every evolved FSA and message about the task
+      (text without control characters).
+    - ``settings``: the settings the task was made with (``make_task(**settings)``), recorded
+      in run folders so that a run can rebuild its task (default: none).
     - ``registry`` holds the skills; ``skills`` restricts which of them evolution may place
       (default: all); ``backend`` picks the implementation.
     - ``setup(rng)`` draws a world and returns the trial's blackboard.

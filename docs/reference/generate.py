@@ -1,0 +1,125 @@
+"""Pages of the reference written from the code at build time (mkdocs-gen-files): every
+field of ``Task`` with its type, default and meaning; the presets as one table from
+``EvolutionConfig``; the command line from its parser. Nothing here is written by hand, so
+the reference cannot drift from the code."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import re
+import runpy
+from pathlib import Path
+
+import mkdocs_gen_files
+
+from skillcompose.cli import build_parser
+from skillcompose.evolve.config import PRESET_NAMES, PRESETS, EvolutionConfig, preset_settings
+from skillcompose.task import Task
+
+os.environ["COLUMNS"] = "100"  # argparse wraps its help at this width
+
+# mkdocstrings reads the package from the installed layout that .ci/typecheck.py lays out of
+# symbolic links (an editable install finds evolve/, robots/ and skills/ through an import
+# hook, which static readers do not run); mkdocs.yml points its `paths` there
+_tools = runpy.run_path(str(Path(__file__).resolve().parents[2] / ".ci" / "typecheck.py"),
+                        run_name="docs")
+_tools["build_tree"](_tools["package_dirs"]())
+
+
+def _bullets(doc: str) -> list[str]:
+    """The ``- ...`` items of a docstring, each joined into one line."""
+    items: list[str] = []
+    for line in doc.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("- "):
+            items.append(stripped[2:])
+        elif items and stripped and line.startswith("      "):
+            items[-1] += " " + stripped
+    return items
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def task_page() -> str:
+    bullets = _bullets(Task.__doc__ or "")
+    rows = []
+    for f in dataclasses.fields(Task):
+        if f.name == "ref":
+            continue
+        meaning = next((b for b in bullets if f"``{f.name}``" in b or
+                        f"``{f.name}(" in b), "")
+        if f.default is not dataclasses.MISSING:
+            default = f"`{f.default!r}`"
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f"`{f.default_factory()!r}`"
+        else:
+            default = "required"
+        kind = str(f.type).replace("|", "or")
+        rows.append(f"| `{f.name}` | `{kind}` | {default} | {_cell(meaning)} |")
+    return "\n".join([
+        "# Task fields",
+        "",
+        "Written from `skillcompose.task.Task` when the site is built. A task module's",
+        "`make_task(**settings)` returns one; every field is checked where the Task is made,",
+        "and a wrong one is a one-line `TaskError` naming the field and what it takes.",
+        "",
+        "| field | type | default | meaning |",
+        "|---|---|---|---|",
+        *rows,
+        "",
+    ])
+
+
+def presets_page() -> str:
+    names = [n for n in PRESET_NAMES if n != "default"]
+    defaults = EvolutionConfig()
+    header = "| setting | " + " | ".join(f"`{n}`" for n in names) + " |"
+    rows = [header, "|---|" + "---|" * len(names)]
+    for f in dataclasses.fields(EvolutionConfig):
+        values = [PRESETS[n].get(f.name, getattr(defaults, f.name)) for n in names]
+        cells = [f"**{v!r}**" if f.name in PRESETS[n] else repr(v)
+                 for n, v in zip(names, values, strict=True)]
+        rows.append(f"| `{f.name}` | " + " | ".join(cells) + " |")
+    default_noisy = preset_settings("default", False) == PRESETS["robust"]
+    doc = EvolutionConfig.__doc__ or ""
+    return "\n".join([
+        "# Presets",
+        "",
+        "Written from `skillcompose.evolve.config` when the site is built. Bold: what the",
+        "preset sets; the rest is the paper's table 1 (`EvolutionConfig()`), which `paper` is.",
+        "`default` (`skillcompose evolve TASK` with no `--preset`, and `evolve(task)` with no",
+        "config) is "
+        + ("`robust`" if default_noisy else "another preset")
+        + " for a noisy task and `deterministic` for a task whose episodes are all the same.",
+        "",
+        *rows,
+        "",
+        "## What each setting means",
+        "",
+        "```text",
+        re.sub(r"\n    ", "\n", doc).strip(),
+        "```",
+        "",
+    ])
+
+
+def cli_page() -> str:
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    parts = ["# Command line", "", "Written from the parser when the site is built.", "",
+             "```text", parser.format_help().rstrip(), "```", ""]
+    for name, sub in action.choices.items():
+        parts += [f"## `skillcompose {name}`", "", "```text", sub.format_help().rstrip(),
+                  "```", ""]
+    return "\n".join(parts)
+
+
+for path, text in (("reference/task.md", task_page()), ("reference/presets.md",
+                                                         presets_page()),
+                   ("reference/cli.md", cli_page())):
+    with mkdocs_gen_files.open(path, "w") as out:
+        out.write(text)
