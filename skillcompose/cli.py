@@ -195,8 +195,6 @@ def main(argv: Sequence[str] | None = None) -> int:
              level=1)
         return status
     except SkillcomposeError as exc:
-        if isinstance(exc, FSAValidationError) and args.command == "validate" and args.json:
-            print_json(_invalid_document(args.file, exc))
         print(f"{prog}: error: {printable(exc)}{set_hint(args, exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -378,6 +376,15 @@ def _invalid_document(file: str, exc: FSAValidationError) -> dict[str, Any]:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    try:
+        return _validate(args)
+    except FSAValidationError as exc:
+        if getattr(args, "json", False):  # the document goes to standard output, here where
+            print_json(_invalid_document(args.file, exc))  # --json keeps it for its document
+        raise
+
+
+def _validate(args: argparse.Namespace) -> int:
     from .fsafile import load_fsa
 
     fsa = load_fsa(args.file)

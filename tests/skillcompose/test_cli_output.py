@@ -133,3 +133,23 @@ def test_help_and_validate_load_no_heavy_package(argv: list[str]) -> None:
     assert proc.returncode == 0, proc.stderr
     assert ("robot" in proc.stdout) if argv == ["--help"] else ("valid" in proc.stdout)
     assert proc.stderr.strip() == "[]"
+
+
+@pytest.mark.parametrize("text", [
+    "format: 1\nstart: A\nstates:\n  A: {skill: X, transitions: {ok: success}}\n  B: [\n",
+    "format: 1\nstart: A\nstates:\n  A: {skill: X, transitions: {ok: nowhere}}\n",
+])
+def test_validate_json_of_an_invalid_file_goes_to_standard_output(
+        text: str, tmp_path: Path) -> None:
+    """`skillcompose validate bad.yaml --json > o.json` as a program: the document lands in
+    o.json (it used to go to standard error exactly when the file was invalid), and the
+    one-line error on standard error."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text, encoding="utf-8")
+    done = subprocess.run([sys.executable, "-m", "skillcompose", "validate", str(bad),
+                           "--json"], capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == 2
+    document = json.loads(done.stdout)
+    assert document["valid"] is False and document["problems"][0]["line"] >= 4
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert done.stderr.startswith("skillcompose validate: error: ")
