@@ -563,7 +563,8 @@ class _Reader:
         except MarkedYAMLError as exc:
             what = exc.problem or exc.context or "malformed YAML"
             mark = exc.problem_mark or exc.context_mark
-            raise _Refused(_at(mark, Problem(
+            misaligned = _misaligned(self.text, mark) if _INDENT_ERRORS.search(what) else None
+            raise _Refused(misaligned or _at(mark, Problem(
                 f"not valid YAML: {what}", fix=_yaml_fix(what, self.text, mark),
             ))) from None
         except ReaderError as exc:
@@ -811,6 +812,60 @@ def _unfoldable(node: Any) -> Any:
     elif type(node) is str and ("  " in node or node != node.strip(" ")):
         return DoubleQuotedScalarString(node)
     return node
+
+
+_INDENT_ERRORS = re.compile(r"mapping values are not allowed|expected <block end>|"
+                            r"did not find expected key|could not find expected ':'")
+
+
+def _content(line: str) -> bool:
+    stripped = line.strip()
+    return bool(stripped) and not stripped.startswith("#")
+
+
+def _misaligned(text: str, mark: Any) -> Problem | None:
+    """A key indented to no level of the mapping it sits in, at or just before the parser's
+    error (which YAML often reports on the next line, in its own words): the line, where the
+    keys around it start, and the fix; None when the indentation is not the slip."""
+    if mark is None:
+        return None
+    lines = text.splitlines()
+    for at in (mark.line, mark.line - 1):
+        if not 0 <= at < len(lines) or not _content(lines[at]):
+            continue
+        open_levels: list[int] = []  # the indentations of the blocks still open
+        previous: str | None = None
+        for line in lines[:at]:
+            if not _content(line):
+                continue
+            indent = len(line) - len(line.lstrip(" "))
+            while open_levels and open_levels[-1] > indent:
+                open_levels.pop()
+            if not open_levels or open_levels[-1] < indent:
+                open_levels.append(indent)
+            previous = line
+        line = lines[at]
+        indent = len(line) - len(line.lstrip(" "))
+        opens = previous is not None and re.split(r"\s#", previous)[0].rstrip().endswith(":")
+        deeper = previous is not None and indent > len(previous) - len(previous.lstrip(" "))
+        if indent in open_levels or (opens and deeper) or not open_levels:
+            continue
+        key = line.strip().split(":", 1)[0]
+        assert previous is not None  # open_levels is not empty
+        before = len(previous) - len(previous.lstrip(" "))
+        like = before + 2 if opens else before  # beside the line above, or inside it
+        return Problem(
+            f"`{clip(key, 40)}` is indented {_spaces(indent)}, which lines up with no key "
+            f"before it (they start at {', '.join(map(str, sorted(set(open_levels))))} "
+            "spaces)",
+            fix=f"indent it by {_spaces(like)}, "
+                + ("inside the key above it" if opens else "like the key above it"),
+            line=at + 1, column=indent + 1)
+    return None
+
+
+def _spaces(n: int) -> str:
+    return "1 space" if n == 1 else f"{n} spaces"
 
 
 def _yaml_fix(what: str, text: str, mark: Any) -> str:

@@ -19,6 +19,7 @@ range: ``n`` genes of the genome, one list in a file.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import numbers
 import re
@@ -252,9 +253,11 @@ def param_problems(
     for name, value in given.items():
         spec = by_name.get(name)
         if spec is None:
+            close = difflib.get_close_matches(str(name), list(by_name), n=1)
             problems.append(Problem(
                 f"skill {skill} has no parameter {name!r}; its parameters are "
                 f"{list(by_name) or 'none'}", state, name,
+                f"did you mean {close[0]!r}?" if close else None,
             ))
             continue
         try:

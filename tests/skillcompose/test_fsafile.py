@@ -6,7 +6,7 @@ import re
 import textwrap
 import time
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import pytest
@@ -18,6 +18,7 @@ from skillcompose import (
     Blackboard,
     FSAFileError,
     FSAValidationError,
+    Param,
     Registry,
     State,
     compile_fsa,
@@ -379,3 +380,38 @@ def test_dumps_and_save_say_what_they_take(tmp_path: Path) -> None:
     fsa = loads_fsa(REFERENCE.read_text(encoding="utf-8"))
     with pytest.raises(IsADirectoryError, match=r"is a folder: give save_fsa a file path"):
         save_fsa(fsa, tmp_path)
+
+
+@pytest.mark.parametrize(("lines", "line", "says", "fix"), [
+    (["  A:", "    skill: X", "     transitions: {ok: success}"], 6,
+     "`transitions` is indented 5 spaces", "indent it by 4 spaces, like the key above it"),
+    (["  A:", "    skill: X", "   transitions: {ok: success}"], 6,
+     "`transitions` is indented 3 spaces", "indent it by 4 spaces, like the key above it"),
+    (["  A:", "    skill: X", "    transitions:", "      ok: success", "     no: A"], 8,
+     "`no` is indented 5 spaces", "indent it by 6 spaces, like the key above it"),
+    (["  A:", " skill: X"], 5, "`skill` is indented 1 space",
+     "indent it by 4 spaces, inside the key above it"),
+])
+def test_a_misaligned_key_is_named_at_its_line_with_the_indent_it_needs(
+        lines: list[str], line: int, says: str, fix: str) -> None:
+    text = "format: 1\nstart: A\nstates:\n" + "\n".join(lines) + "\n"
+    with pytest.raises(FSAFileError) as info:
+        loads_fsa(text, "bad.yaml")
+    (problem,) = info.value.problems
+    assert problem.line == line and says in problem.message and problem.fix == fix
+    assert "block end" not in str(info.value)  # not the parser's own words
+
+
+def test_an_unknown_parameter_gets_a_did_you_mean() -> None:
+    registry = Registry()
+
+    @skill
+    def move(bb: Blackboard, rng: np.random.Generator, *,
+             z: Annotated[float, Param(0.0, 1.0, unit="m")] = 0.5) -> Literal["success"]:
+        return "success"
+
+    registry.add(move)
+    fsa = loads_fsa("format: 1\nstart: A\nstates:\n  A:\n    skill: Move\n    params: "
+                    "{zz: 0.5}\n    transitions: {success: success}\n", "p.yaml")
+    with pytest.raises(FSAValidationError, match=r"has no parameter 'zz'.*did you mean 'z'\?"):
+        fsa.validate(registry)
