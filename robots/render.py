@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from skillcompose.robots.collision import Box, Scene
@@ -245,9 +246,12 @@ def render_configuration(
     x, y, yaw = pose.base_xy_yaw
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_pane_color((0.96, 0.96, 0.97, 1.0))
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # at most 5 ticks: labels never overlap
+        axis.set_major_locator(MaxNLocator(nbins=5))
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
+    ax.zaxis.set_rotate_label(False)  # matplotlib turns it upside down on this view
+    ax.set_zlabel("z [m]", rotation=90)
     ax.set_title(
         title
         or f"PR2  base ({x:.2f} m, {y:.2f} m, {yaw:.2f} rad)  torso {pose.torso_height_m:.2f} m",

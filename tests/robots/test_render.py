@@ -114,3 +114,23 @@ def test_a_picture_shows_the_robot_the_table_and_an_object(
     assert wood.sum() > 2000 and green.sum() > 20
     camera = scene_camera(pr2, [pose], Scene((table, cube)))
     assert camera.half_width_m >= 0.6  # table and robot in view at one scale
+
+
+def test_axis_labels_read_upright_and_ticks_do_not_crowd(
+        pr2: RobotModel, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The z label was drawn upside down and the x and y ticks overlapped (every 0.25 m)."""
+    from matplotlib.figure import Figure
+
+    saved: list[Figure] = []
+    original = Figure.savefig
+
+    def keep(self: Figure, *args: object, **kwargs: object) -> None:
+        saved.append(self)
+        original(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    render_configuration(pr2, pr2.tucked_pose(), tmp_path / "pose.png")
+    ax = saved[-1].axes[0]
+    assert ax.zaxis.label.get_text() == "z [m]" and ax.zaxis.label.get_rotation() == 90
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        assert len(axis.get_major_locator()()) <= 7
