@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -130,7 +131,7 @@ def test_axis_labels_read_upright_and_ticks_do_not_crowd(
 
     monkeypatch.setattr(Figure, "savefig", keep)
     render_configuration(pr2, pr2.tucked_pose(), tmp_path / "pose.png")
-    ax = saved[-1].axes[0]
+    ax: Any = saved[-1].axes[0]  # an Axes3D
     assert ax.zaxis.label.get_text() == "z [m]" and ax.zaxis.label.get_rotation() == 90
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         assert len(axis.get_major_locator()()) <= 7
