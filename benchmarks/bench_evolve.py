@@ -153,10 +153,10 @@ def _pool_options(**options: Any) -> Iterator[None]:
         return
     from unittest import mock
 
-    import skillcompose.evolve.evaluation as evaluation
+    import skillcompose.evolve.backends as backends
 
-    made = evaluation.ProcessEvaluator
-    with mock.patch.object(evaluation, "ProcessEvaluator",
+    made = backends.ProcessEvaluator
+    with mock.patch.object(backends, "ProcessEvaluator",
                            lambda *a, **k: made(*a, **{**k, **options})):
         yield
 

@@ -18,11 +18,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .algorithm import EvolutionResult as EvolutionResult
-    from .algorithm import GenerationRecord as GenerationRecord
-    from .algorithm import check_fresh as check_fresh
-    from .algorithm import describe_fresh as describe_fresh
     from .algorithm import evolve as evolve
+    from .backends import BACKENDS as BACKENDS
+    from .backends import make_evaluator as make_evaluator
     from .config import PRESETS as PRESETS
     from .config import EvolutionConfig as EvolutionConfig
     from .config import preset_settings as preset_settings
@@ -30,20 +28,17 @@ if TYPE_CHECKING:
     from .errors import EvolutionConfigError as EvolutionConfigError
     from .errors import EvolutionError as EvolutionError
     from .errors import SeedFSAError as SeedFSAError
-    from .evaluation import BACKENDS as BACKENDS
     from .evaluation import EvalLimits as EvalLimits
     from .evaluation import Faults as Faults
     from .evaluation import Job as Job
-    from .evaluation import ProcessEvaluator as ProcessEvaluator
-    from .evaluation import RayEvaluator as RayEvaluator
-    from .evaluation import SerialEvaluator as SerialEvaluator
     from .evaluation import evaluate_genome as evaluate_genome
-    from .evaluation import make_evaluator as make_evaluator
     from .genome import Genome as Genome
     from .genome import GenomeCompiler as GenomeCompiler
     from .genome import Node as Node
     from .genome import SkillChoice as SkillChoice
     from .genome import SkillSet as SkillSet
+    from .holds import check_fresh as check_fresh
+    from .holds import describe_fresh as describe_fresh
     from .operators import add_node as add_node
     from .operators import change_start as change_start
     from .operators import crossover as crossover
@@ -53,9 +48,14 @@ if TYPE_CHECKING:
     from .operators import mutate as mutate
     from .operators import mutate_genes as mutate_genes
     from .operators import mutate_node as mutate_node
+    from .pool import ProcessEvaluator as ProcessEvaluator
+    from .ray_backend import RayEvaluator as RayEvaluator
+    from .result import EvolutionResult as EvolutionResult
+    from .result import GenerationRecord as GenerationRecord
     from .rundir import RunDir as RunDir
     from .rundir import draw_fsa as draw_fsa
     from .rundir import plot_history as plot_history
+    from .serial import SerialEvaluator as SerialEvaluator
     from .simplify import merge_duplicates as merge_duplicates
     from .simplify import simplify as simplify
 else:
@@ -68,15 +68,20 @@ else:
     # ``skillcompose.evolve.simplify``
     # when that is imported.
     _EXPORTS = {
-        "algorithm": "EvolutionResult GenerationRecord check_fresh describe_fresh evolve",
+        "algorithm": "evolve",
+        "backends": "BACKENDS make_evaluator",
         "config": "PRESETS EvolutionConfig preset_settings",
         "errors": "CheckpointError EvolutionConfigError EvolutionError SeedFSAError",
-        "evaluation": ("BACKENDS EvalLimits Faults Job ProcessEvaluator RayEvaluator "
-                       "SerialEvaluator evaluate_genome make_evaluator"),
+        "evaluation": "EvalLimits Faults Job evaluate_genome",
         "genome": "Genome GenomeCompiler Node SkillChoice SkillSet",
+        "holds": "check_fresh describe_fresh",
         "operators": ("add_node change_start crossover delete_node fix_start initialize mutate "
                       "mutate_genes mutate_node"),
+        "pool": "ProcessEvaluator",
+        "ray_backend": "RayEvaluator",
+        "result": "EvolutionResult GenerationRecord",
         "rundir": "RunDir draw_fsa plot_history",
+        "serial": "SerialEvaluator",
         "simplify": "merge_duplicates simplify",
     }
     __getattr__, __dir__, __all__ = lazy_loader.attach(

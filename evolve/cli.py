@@ -19,7 +19,7 @@ from .errors import EvolutionError
 if TYPE_CHECKING:
     from skillcompose.task import Task
 
-    from .algorithm import EvolutionResult
+    from .result import EvolutionResult
 
 # The evolution itself (numpy, the runtime, the evaluators) is imported by `handle`, when the
 # command runs: `skillcompose --help` imports this module and must stay quick.
@@ -48,6 +48,7 @@ written again if they were deleted.
 _UNSET_UNTIL_GIVEN = ("seed", "preset", "simplify_trials", "check_trials")
 
 
+# long: one add_argument per option, in the order --help lists them
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``skillcompose evolve``, each checked where it is parsed."""
     from skillcompose.arguments import (
@@ -308,49 +309,12 @@ def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
 
 
 def handle(args: argparse.Namespace) -> int:
-    from skillcompose.task import load_task, parse_settings
-
-    from .algorithm import describe_fresh, evolve
-    from .resume import FREE_SETTINGS
+    from .algorithm import evolve
     from .rundir import RunDir
 
     try:
-        if args.resume:
-            task, record = _resume(args)
-            cfg = EvolutionConfig.from_dict(record["config"]).replace(**{
-                k: v for k, v in _given_settings(args).items() if k in FREE_SETTINGS})
-            info = RunDir(args.resume).load_run_info()
-            backend = args.backend or info.get("backend")
-            if backend not in BACKENDS:
-                backend = "serial"
-            workers = args.workers if args.workers is not None else info.get("workers")
-            if isinstance(workers, bool) or not isinstance(workers, int) or \
-                    not 1 <= workers <= (os.cpu_count() or 1):
-                workers = None  # run.json is data from elsewhere: all cores at most
-            seed, simplify_result, simplify_trials, check_trials = None, None, None, None
-        else:
-            if not args.task:
-                raise EvolutionError(
-                    "name a task module, e.g. `skillcompose evolve examples.toy_task`, "
-                    "or continue a run with --resume DIR"
-                )
-            task = load_task(args.task, **parse_settings(args.settings))
-            cfg = _config(args, task.deterministic)
-            cores = args.workers or os.cpu_count() or 1
-            backend = args.backend or ("process" if cores > 1 else "serial")
-            workers = args.workers
-            seed = 0 if args.seed is None else args.seed
-            simplify_result = not args.no_simplify
-            simplify_trials = 200 if args.simplify_trials is None else args.simplify_trials
-            check_trials = 200 if args.check_trials is None else args.check_trials
-        result = evolve(
-            task, cfg, seed=seed, workers=workers, backend=backend,
-            out_dir=None if args.resume else args.out,
-            seed_fsa=None if args.resume else args.seed_fsa,
-            progress=not getattr(args, "quiet", False), resume=args.resume,
-            simplify_result=simplify_result, simplify_trials=simplify_trials,
-            check_trials=check_trials,
-        )
+        task, cfg, options = _run_arguments(args)
+        result = evolve(task, cfg, **options)
     except SkillcomposeError as exc:
         print(f"skillcompose evolve: error: {printable(exc)}{set_hint(args, exc)}",
               file=sys.stderr)
@@ -366,6 +330,61 @@ def handle(args: argparse.Namespace) -> int:
         print_json(summary_document(result, task.name))
         _warn(result, cfg, task)
         return 1 if result.nothing_succeeded else 0
+    return _summary(args, result, cfg, task)
+
+
+def _run_arguments(args: argparse.Namespace) -> tuple[Task, EvolutionConfig, dict[str, Any]]:
+    """The task, the settings and :func:`evolve`'s other arguments: a resumed run's from its
+    directory (with what a resume may change), a new run's from the options."""
+    from skillcompose.task import load_task, parse_settings
+
+    from .resume import FREE_SETTINGS
+    from .rundir import RunDir
+
+    if args.resume:
+        task, record = _resume(args)
+        cfg = EvolutionConfig.from_dict(record["config"]).replace(**{
+            k: v for k, v in _given_settings(args).items() if k in FREE_SETTINGS})
+        info = RunDir(args.resume).load_run_info()
+        backend = args.backend or info.get("backend")
+        if backend not in BACKENDS:
+            backend = "serial"
+        workers = args.workers if args.workers is not None else info.get("workers")
+        if isinstance(workers, bool) or not isinstance(workers, int) or \
+                not 1 <= workers <= (os.cpu_count() or 1):
+            workers = None  # run.json is data from elsewhere: all cores at most
+        seed, simplify_result, simplify_trials, check_trials = None, None, None, None
+    else:
+        if not args.task:
+            raise EvolutionError(
+                "name a task module, e.g. `skillcompose evolve examples.toy_task`, "
+                "or continue a run with --resume DIR"
+            )
+        task = load_task(args.task, **parse_settings(args.settings))
+        cfg = _config(args, task.deterministic)
+        cores = args.workers or os.cpu_count() or 1
+        backend = args.backend or ("process" if cores > 1 else "serial")
+        workers = args.workers
+        seed = 0 if args.seed is None else args.seed
+        simplify_result = not args.no_simplify
+        simplify_trials = 200 if args.simplify_trials is None else args.simplify_trials
+        check_trials = 200 if args.check_trials is None else args.check_trials
+    return task, cfg, {
+        "seed": seed, "workers": workers, "backend": backend,
+        "out_dir": None if args.resume else args.out,
+        "seed_fsa": None if args.resume else args.seed_fsa,
+        "progress": not getattr(args, "quiet", False), "resume": args.resume,
+        "simplify_result": simplify_result, "simplify_trials": simplify_trials,
+        "check_trials": check_trials,
+    }
+
+
+def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionConfig,
+             task: Task) -> int:
+    """Say what the run found, on standard output (its warnings on standard error); the
+    exit status."""
+    from .holds import describe_fresh
+
     state = "solved" if result.solved else "not solved"
     if result.unchanged:
         why = "solved" if result.solved else (

@@ -173,6 +173,7 @@ class EvolutionConfig:
     holds_confidence: float = 0.95
     holds_max_episodes: int = 100_000
 
+    # long: one check per setting, every problem reported in the one error
     def __post_init__(self) -> None:
         problems: list[str] = []
 

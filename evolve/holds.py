@@ -10,12 +10,17 @@ first look. A deterministic task needs one episode.
 
 The worlds come from ``SeedSequence(seed, spawn_key=(4, generation, k))``: a stream of their
 own, which neither breeding, evaluation, confirmation nor simplification draws from.
+
+The exported FSA of a run is also measured on a fixed count of fresh episodes at its end
+(:func:`check_fresh`, stream 3), unless the holds test's episodes say it already;
+:func:`describe_fresh` puts either in one line.
 """
 
 from __future__ import annotations
 
 import math
 import statistics
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,7 +33,20 @@ from skillcompose.task import Task
 from .config import EvolutionConfig
 from .evaluation import TIMED_OUT, Guard, iter_episodes
 
-__all__ = ["HOLDS_STREAM", "FreshCheck", "holds_test", "measure_fresh", "required_rate"]
+__all__ = [
+    "FRESH_STREAM",
+    "HOLDS_STREAM",
+    "FreshCheck",
+    "check_fresh",
+    "describe_fresh",
+    "fresh_differs",
+    "holds_test",
+    "measure_fresh",
+    "required_rate",
+]
+
+FRESH_STREAM = 3
+"""The spawn key of the worlds of a run's final fresh-episode check (:func:`check_fresh`)."""
 
 HOLDS_STREAM = 4
 """The spawn key of the worlds the holds test draws (after breeding 0, evaluation 1,
@@ -106,3 +124,46 @@ def measure_fresh(task: Task, fsa: FSA, seq: np.random.SeedSequence, episodes: i
     successes = sum(map(task.solved, scores))
     return FreshCheck(estimate(successes, len(scores), confidence, required),
                       _mean(scores), raised, timeouts, seed, "measured")
+
+
+def check_fresh(
+    task: Task, fsa: FSA, seed: int, trials: int, time_limit: float | None = None,
+    required: float | None = None, confidence: float = 0.95,
+) -> dict[str, Any]:
+    """How ``fsa`` does on ``trials`` fresh episodes (worlds from ``SeedSequence(seed,
+    spawn_key=(3,))``, never seen during evolution or simplification): the share that
+    reach the task's target (``success_rate``) with its one-sided bounds at ``confidence``
+    (``lower``, ``upper``; Clopper–Pearson), whether the lower one reaches ``required``
+    (``holds``, None when no rate is required), the mean fitness, and the episodes that
+    raised or ran past ``time_limit`` [s] (each scores worst)."""
+    seq = np.random.SeedSequence(seed, spawn_key=(FRESH_STREAM,))
+    return measure_fresh(task, fsa, seq, trials, seed, required=required,
+                         confidence=confidence, time_limit=time_limit).to_dict()
+
+
+def describe_fresh(fresh: Mapping[str, Any]) -> str:
+    """One line for a fresh check of ``run.json`` or a result: the rate, its bounds and,
+    when a rate was required, whether it holds (older runs: the rate alone)."""
+    rate, episodes = fresh.get("success_rate"), fresh.get("episodes")
+    if not isinstance(rate, (int, float)) or not isinstance(episodes, int):
+        return "not measured"
+    text = f"{100 * rate:.1f} % of {episodes:,} fresh episodes reach the target"
+    lower, upper = fresh.get("lower"), fresh.get("upper")
+    if isinstance(lower, (int, float)) and isinstance(upper, (int, float)):
+        conf = fresh.get("confidence", 0.95)
+        text += f" ({100 * conf:g} % bounds {100 * lower:.1f}–{100 * upper:.1f} %)"
+    required, holds = fresh.get("required_rate"), fresh.get("holds")
+    if isinstance(required, (int, float)) and isinstance(holds, bool):
+        text += (f"; holds at the required {100 * required:g} %" if holds else
+                 f"; does not hold at the required {100 * required:g} %")
+    return text
+
+
+def fresh_differs(task: Task, evolved: float, fresh: float) -> bool:
+    """Whether the fitness on fresh episodes tells another story than the evolved one: the
+    task counts one as solved and not the other, or they differ by more than 10 %."""
+    if task.solved(evolved) != task.solved(fresh):
+        return True
+    if math.isinf(evolved) or math.isinf(fresh) or math.isnan(fresh):
+        return evolved != fresh
+    return abs(fresh - evolved) > 0.1 * max(abs(fresh), abs(evolved))

@@ -13,6 +13,9 @@ checkpoint holds that record under its checksum; ``run.json`` shows it to people
 - settings given again must equal the recorded ones: only the generation budget may grow
   (extending the run), and how it is evaluated (backend, workers, when workers are
   replaced) and checkpointed may change, as none of them changes the result.
+
+:func:`open_resumed` locks the run directory and checks all of this before a resumed run
+starts.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from skillcompose.task import Task, load_task
 
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
+from .rundir import RunDir
 
 __all__ = [
     "FREE_SETTINGS",
@@ -37,6 +41,7 @@ __all__ = [
     "differences",
     "load_recorded_task",
     "normalise",
+    "open_resumed",
     "run_record",
     "without_free",
 ]
@@ -178,3 +183,66 @@ def load_recorded_task(record: Mapping[str, Any], run_dir: str | os.PathLike[str
             f"{record['task']!r}; resume it with the module that made it"
         )
     return task
+
+
+def open_resumed(
+    path: str | os.PathLike[str], task: Task, cfg: EvolutionConfig | None,
+    simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
+) -> tuple[RunDir, dict[str, Any], dict[str, Any], EvolutionConfig]:
+    """The run directory at ``path``, locked, its checkpoint, and the run's record and
+    settings, checked against ``run.json`` and what was given (unlocked again if refused)."""
+    rundir = RunDir(path)
+    rundir.lock()
+    try:
+        checkpoint = rundir.load_checkpoint()
+        record, recorded_cfg = _resumed(task, cfg, rundir, checkpoint, simplify_result,
+                                        simplify_trials, check_trials)
+    except BaseException:
+        rundir.unlock()
+        raise
+    return rundir, checkpoint, record, recorded_cfg
+
+
+def _resumed(
+    task: Task, cfg: EvolutionConfig | None, rundir: RunDir, checkpoint: Mapping[str, Any],
+    simplify_result: bool | None, simplify_trials: int | None, check_trials: int | None,
+) -> tuple[dict[str, Any], EvolutionConfig]:
+    """The run's record and settings, checked against ``run.json`` and what was given."""
+    where = str(rundir.checkpoint)
+    record = check_record(checkpoint.get("run"), where)
+    info = rundir.load_run_info()
+    def meaning(k: str, v: Any) -> Any:
+        return without_free(normalise(v)) if k == "config" else normalise(v)
+
+    edited = [k for k in MEANING if meaning(k, info.get(k)) != meaning(k, record[k])]
+    if edited:
+        found = differences({k: meaning(k, record[k]) for k in edited},
+                            {k: meaning(k, info.get(k)) for k in edited})
+        raise CheckpointError(
+            f"{rundir.run_json} differs from the run's checkpoint in {', '.join(found)}; "
+            "a run cannot change its meaning on resume: restore run.json, or start a new run "
+            "with the settings you want"
+        )
+    recorded_cfg = EvolutionConfig.from_dict(record["config"])
+    given: dict[str, Any] = {"task": task.name}
+    if task.ref is not None:
+        given["task_settings"] = dict(task.ref.settings)
+    if simplify_result is not None:
+        given["simplify"] = simplify_result
+    if simplify_trials is not None:
+        given["simplify_trials"] = simplify_trials
+    if check_trials is not None:
+        given["check_trials"] = check_trials
+    problems = differences(record, given)
+    if cfg is not None:
+        mine = recorded_cfg.to_dict()
+        problems += differences(mine, {
+            k: v for k, v in cfg.to_dict().items() if k not in FREE_SETTINGS})
+        recorded_cfg = recorded_cfg.replace(**{k: getattr(cfg, k) for k in FREE_SETTINGS})
+    if problems:
+        raise CheckpointError(
+            f"{rundir.path}: resuming with {'; '.join(problems)} would change the run; leave "
+            "them out (a resume may change only the generation budget, the backend, the "
+            "workers, when workers are replaced and how often it checkpoints)"
+        )
+    return record, recorded_cfg

@@ -249,19 +249,19 @@ def test_the_pool_survives_many_deaths_in_one_batch() -> None:
             assert ev.evaluate(good) == [e for i, e in enumerate(expected) if i not in killers]
             assert ev.lost == 2 * len(killers)
 
-            import skillcompose.evolve.evaluation as evaluation
+            import skillcompose.evolve.pool as pool
 
-            real_wait = evaluation.wait
+            real_wait = pool.wait
 
             def interrupted(*args: object, **kwargs: object) -> object:
                 raise KeyboardInterrupt
 
-            evaluation.wait = interrupted  # type: ignore[assignment]
+            pool.wait = interrupted  # type: ignore[assignment]
             try:
                 with pytest.raises(KeyboardInterrupt):
                     ev.evaluate(good)
             finally:
-                evaluation.wait = real_wait
+                pool.wait = real_wait
             assert ev.evaluate(good[:30]) == [e for i, e in enumerate(expected)
                                               if i not in killers][:30]
         finally:
@@ -376,17 +376,18 @@ def test_confirm_feedback_confirms_each_genome_once(monkeypatch: pytest.MonkeyPa
     and again; with confirm_feedback it takes the failed confirmation's fitness (in the
     population and the cache), so every confirmation is of another genome."""
     from skillcompose.evolve import algorithm
+    from skillcompose.evolve.state import RunState
 
     task = _luck_task()
     confirmed: list[tuple[object, ...]] = []
-    confirm = algorithm._Run.confirm
+    confirm = algorithm.confirm
 
-    def spy(run: algorithm._Run, fitness: list[float]) -> bool:
+    def spy(run: RunState, fitness: list[float]) -> bool:
         assert run.best is not None
         confirmed.append(run.best[0].key())
         return confirm(run, fitness)
 
-    monkeypatch.setattr(algorithm._Run, "confirm", spy)
+    monkeypatch.setattr(algorithm, "confirm", spy)
     cfg = EvolutionConfig(population=8, initial_nodes=3, generations=30, trials=1,
                           elitism=1, cache=True, cache_refresh=1, confirm_trials=50,
                           confirm_rate=0.9)
@@ -403,18 +404,19 @@ def test_confirm_candidates_confirms_several_genomes_a_generation_each_once(
     """On the luck task (no FSA passes: its share of the target is about 0.7), three
     candidates a generation are confirmed, each on worlds of its own, and a genome that
     failed is never confirmed again, in the same or a later generation."""
-    from skillcompose.evolve import EvolutionConfigError, algorithm
+    from skillcompose.evolve import EvolutionConfigError, solution_checks
+    from skillcompose.evolve.state import CONFIRM_STREAM
 
     task = _luck_task()
     confirmed: list[tuple[tuple[object, ...], tuple[int, ...]]] = []
-    evaluate_job = algorithm.evaluate_job
+    evaluate_job = solution_checks.evaluate_job
 
     def spy(task: Task, compiler: object, job: Job, *args: object) -> object:
-        if job.spawn_key[0] == algorithm._CONFIRM:
+        if job.spawn_key[0] == CONFIRM_STREAM:
             confirmed.append((job.genome, job.spawn_key))
         return evaluate_job(task, compiler, job, *args)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(algorithm, "evaluate_job", spy)
+    monkeypatch.setattr(solution_checks, "evaluate_job", spy)
     cfg = EvolutionConfig(population=12, initial_nodes=3, generations=20, trials=1,
                           elitism=1, cache=True, cache_refresh=1, confirm_trials=50,
                           confirm_rate=0.9, confirm_candidates=3)

@@ -18,7 +18,9 @@ import pytest
 from skillcompose import FSA, Blackboard, Registry, State, load_fsa, save_fsa, skill
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import EvolutionConfig, Genome, Job, Node, SkillSet, evolve
-from skillcompose.evolve.evaluation import EvalLimits, Faults, ProcessEvaluator, SerialEvaluator
+from skillcompose.evolve.evaluation import EvalLimits, Faults
+from skillcompose.evolve.pool import ProcessEvaluator
+from skillcompose.evolve.serial import SerialEvaluator
 from skillcompose.task import Task, load_task
 
 FAULTY = "tests.evolve.faulty_task"
@@ -246,7 +248,7 @@ def test_an_interrupted_batch_leaves_no_lock_held(monkeypatch: pytest.MonkeyPatc
     lock: the pool that follows must not wait on that lock for ever."""
     import multiprocessing
 
-    import skillcompose.evolve.evaluation as evaluation
+    import skillcompose.evolve.pool as pool
 
     task = load_task(FAULTY)
     jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"])
@@ -271,7 +273,7 @@ def test_an_interrupted_batch_leaves_no_lock_held(monkeypatch: pytest.MonkeyPatc
 
     try:
         assert ev.evaluate(jobs) == expected
-        monkeypatch.setattr(evaluation, "wait", interrupted)
+        monkeypatch.setattr(pool, "wait", interrupted)
         with pytest.raises(KeyboardInterrupt):
             ev.evaluate(jobs)
         monkeypatch.undo()
@@ -290,13 +292,13 @@ def test_a_worker_killed_claiming_a_chunk_costs_no_result(
     the batch run again, to the serial results, and one death is counted."""
     import signal
 
-    import skillcompose.evolve.evaluation as evaluation
+    import skillcompose.evolve.pool as pool
 
     task = load_task(FAULTY)
     jobs = _jobs(task, ["FindBlock", "Carry", "FindBlock"] * 4)
     expected = SerialEvaluator(task, SkillSet.from_task(task)).evaluate(jobs)
     ev = ProcessEvaluator(task, SkillSet.from_task(task), workers=2)
-    run_packed = evaluation._run_packed
+    run_packed = pool._run_packed
     marker = tmp_path / "died"
 
     def dies_claiming(*args: Any) -> int:
@@ -310,7 +312,7 @@ def test_a_worker_killed_claiming_a_chunk_costs_no_result(
     def hung(signum: int, frame: object) -> None:
         raise TimeoutError("the pool waited on a dead worker's lock")
 
-    monkeypatch.setattr(evaluation, "_run_packed", dies_claiming)  # forked workers inherit it
+    monkeypatch.setattr(pool, "_run_packed", dies_claiming)  # forked workers inherit it
     old = signal.signal(signal.SIGALRM, hung)
     signal.alarm(60)
     try:
@@ -470,7 +472,7 @@ def test_leaking_workers_are_replaced_and_results_do_not_change() -> None:
 @pytest.mark.private_network  # starts Ray, which listens: see tests/conftest.py
 def test_ray_reruns_a_dead_actors_chunk_job_by_job() -> None:
     ray = pytest.importorskip("ray")
-    from skillcompose.evolve.evaluation import RayEvaluator
+    from skillcompose.evolve.ray_backend import RayEvaluator
 
     crashy = load_task(FAULTY, fault="crash")
     hang = load_task(FAULTY, fault="hang")

@@ -59,7 +59,8 @@ def test_an_interrupted_island_run_resumes_as_if_never_interrupted(tmp_path: Pat
 
 
 def test_migrants_arrive_every_interval_from_the_ring_neighbour() -> None:
-    from skillcompose.evolve.algorithm import _Run  # the breeding step, seen from inside
+    from skillcompose.evolve.breeding import migrate  # the breeding step, seen from inside
+    from skillcompose.evolve.state import RunState
 
     task = _task()
     cfg = EvolutionConfig(population=12, initial_nodes=6, islands=3, migrants=2,
@@ -68,14 +69,14 @@ def test_migrants_arrive_every_interval_from_the_ring_neighbour() -> None:
     from skillcompose.evolve.operators import initialize
 
     skills = SkillSet.from_task(task)
-    run = _Run(task, cfg, 0, skills, None, None, None, 1, {})
+    run = RunState(task, cfg, 0, skills, None, 1, {})
     for _ in range(cfg.population):
         g = initialize(skills, run.rng, cfg.initial_nodes)
         g.origin = {"uid": run.uid()}
         run.population.append(g)
     run.generation = 1
     fitness = [float(i) for i in range(cfg.population)]  # minimised: index 0 is the best
-    moved, moved_fitness = run.migrate(run.population, fitness)
+    moved, moved_fitness = migrate(run, run.population, fitness)
     # island 0 (0-3) gets island 2's best (8, 9) in place of its worst (3, 2); island 1
     # (4-7) gets island 0's best (0, 1); island 2 (8-11) gets island 1's best (4, 5)
     assert [g.origin["uid"] for g in moved] == [0, 1, 9, 8, 4, 5, 1, 0, 8, 9, 5, 4]
@@ -83,10 +84,10 @@ def test_migrants_arrive_every_interval_from_the_ring_neighbour() -> None:
     assert [g.origin.get("migrant_from") for g in moved[:4]] == [None, None, 2, 2]
     run.cfg = cfg.replace(migration_interval=2)
     run.generation = 3  # with an interval of 2, generation 3 has none
-    assert run.migrate(run.population, fitness)[1] == fitness
+    assert migrate(run, run.population, fitness)[1] == fitness
     complete = cfg.replace(topology="complete")
     run.cfg = complete
-    moved, moved_fitness = run.migrate(run.population, fitness)
+    moved, moved_fitness = migrate(run, run.population, fitness)
     # island 0 receives from islands 1 and 2: the best two of each, capped at half (2)
     assert moved_fitness[:4] == [0, 1, 5, 4]
 
@@ -104,22 +105,23 @@ def test_unique_children_spend_evaluations_on_new_genomes() -> None:
 
 
 def test_neutral_elites_give_way_to_newer_genomes_of_equal_fitness() -> None:
-    from skillcompose.evolve.algorithm import _Run
+    from skillcompose.evolve.breeding import breed
     from skillcompose.evolve.genome import SkillSet
     from skillcompose.evolve.operators import initialize
+    from skillcompose.evolve.state import RunState
 
     task = _task()
     skills = SkillSet.from_task(task)
 
     def elites(neutral: bool) -> list[int]:
         cfg = EvolutionConfig(population=6, initial_nodes=4, elitism=2, neutral=neutral)
-        run = _Run(task, cfg, 0, skills, None, None, None, 1, {})
+        run = RunState(task, cfg, 0, skills, None, 1, {})
         for _ in range(cfg.population):
             g = initialize(skills, run.rng, cfg.initial_nodes)
             g.origin = {"uid": run.uid()}
             run.population.append(g)
         fitness = [1.0, 0.5, 0.5, 2.0, 0.5, 0.5]  # minimised: four equal best
-        return [g.origin["uid"] for g in run.breed(fitness) if g.origin.get("elite")]
+        return [g.origin["uid"] for g in breed(run, fitness) if g.origin.get("elite")]
 
     assert elites(False) == [1, 2]  # the first found stay
     assert elites(True) == [5, 4]  # the newest of the equals take their place

@@ -52,7 +52,7 @@ def counted(monkeypatch: pytest.MonkeyPatch) -> Iterator[_Counted]:
     ray = pytest.importorskip("ray")
     import numpy as np
 
-    import skillcompose.evolve.evaluation as ev_mod
+    import skillcompose.evolve.ray_backend as ev_mod
     from skillcompose.evolve import Job, RayEvaluator, SerialEvaluator, SkillSet, initialize
 
     task = load_task("examples.toy_task", p_fail=0.2)
@@ -82,7 +82,7 @@ def test_a_generation_is_cut_in_batches_of_one_chunk_per_actor(
     """Factoring: each batch gives every actor an equal chunk of a half share of what is
     left (``chunks_per_worker`` 2), none under the floor; a generation with less work than
     the floor per actor goes out in one even chunk per actor."""
-    import skillcompose.evolve.evaluation as ev_mod
+    import skillcompose.evolve.ray_backend as ev_mod
 
     evaluator, jobs, serial, sizes = counted
     assert evaluator.evaluate(jobs) == serial  # untimed: an eighth of a share at least
@@ -140,7 +140,7 @@ def test_jobs_take_a_direct_connection_and_fall_back_to_rays_calls(
     """By default each actor's chunks go over a connection of its own; when the driver
     cannot connect to a live actor, it says so once and the jobs go through Ray's calls,
     with the same fitnesses."""
-    import skillcompose.evolve.evaluation as ev_mod
+    import skillcompose.evolve.ray_backend as ev_mod
     from skillcompose.evolve import RayEvaluator, SkillSet
 
     evaluator, jobs, serial, _ = counted

@@ -232,12 +232,12 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
 ) -> None:
     task = _task()
     full = evolve(task, CFG, seed=4, out_dir=tmp_path / "full", simplify_trials=20)
-    import skillcompose.evolve.algorithm as algorithm
+    import skillcompose.evolve.export as export
 
     def killed(*args: object, **kwargs: object) -> object:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(algorithm, "simplify", killed)
+    monkeypatch.setattr(export, "simplify", killed)
     with pytest.raises(KeyboardInterrupt):
         evolve(task, CFG, seed=4, out_dir=tmp_path / "b", simplify_trials=20)
     monkeypatch.undo()
@@ -251,12 +251,12 @@ def test_a_run_killed_in_its_final_writes_resumes_without_repeating_a_generation
 def test_ctrl_c_says_how_to_continue_the_run(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import skillcompose.evolve.algorithm as algorithm
+    import skillcompose.evolve.export as export
 
     def interrupted(*args: object, **kwargs: object) -> object:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(algorithm, "simplify", interrupted)
+    monkeypatch.setattr(export, "simplify", interrupted)
     d = tmp_path / "my run"
     assert skillcompose_main(["evolve", *TOY, *SMALL, "--generations", "1", "--out", str(d)]) \
         == 130

@@ -1,0 +1,256 @@
+"""The state of one run, and its checkpoint: to plain JSON data and back, every value checked.
+
+:class:`RunState` holds what a run knows between generations (the population, the breeding
+generator, the best so far, the history, the cache, what confirmations and holds tests
+found, ...); :meth:`RunState.state` is everything a checkpoint keeps and
+:meth:`RunState.restore` reads it back from a file, which may come from someone else.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from skillcompose import FSA
+from skillcompose.task import Task
+
+from .config import EvolutionConfig
+from .errors import CheckpointError
+from .evaluation import Faults
+from .genome import Genome, GenomeCompiler, SkillSet
+from .result import GenerationRecord
+
+if TYPE_CHECKING:
+    from .export import SeedNames
+    from .rundir import RunDir
+
+__all__ = ["BREED_STREAM", "CONFIRM_STREAM", "EVAL_STREAM", "RunState", "fold"]
+
+# The streams of the run's seed, ``SeedSequence(seed, spawn_key=(stream, ...))``; the final
+# fresh check and the holds test draw from streams 3 and 4 (see holds.py).
+BREED_STREAM = 0  # the breeding generator
+EVAL_STREAM = 1  # the worlds of evaluations
+CONFIRM_STREAM = 2  # the worlds of confirmations
+
+_FAULT_FIELDS = frozenset(Faults().to_dict())
+
+
+def fold(total: float, count: int, mean: float, trials: int) -> tuple[float, int]:
+    """A genome's running (total, episodes) with ``trials`` more episodes of ``mean``
+    fitness; a worst (infinite) score on either side stands alone."""
+    if math.isinf(mean) or math.isinf(total):
+        return mean, 1
+    return total + mean * trials, count + trials
+
+
+def _tuples(data: Any) -> Any:
+    """JSON lists back to the tuples a genome's code and key are made of; only numbers."""
+    if isinstance(data, list):
+        return tuple(_tuples(x) for x in data)
+    return _number(data)
+
+
+def _number(x: Any) -> float | int:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise TypeError(f"expected a number, found {type(x).__name__}")
+    return x
+
+
+def _whole(x: Any) -> int:
+    if isinstance(x, bool) or not isinstance(x, int) or x < 0:
+        raise TypeError(f"expected a whole number, found {x!r}")
+    return x
+
+
+def _generation_record(r: Any) -> GenerationRecord:
+    """A checkpoint's history entry, checked field by field."""
+    if not isinstance(r, dict):
+        raise TypeError(f"a history entry is {type(r).__name__}, not an object")
+    faults = r.get("faults", {})
+    if not isinstance(faults, dict) or not all(
+            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool)
+            for k, v in faults.items()):
+        raise TypeError("a history entry's faults are not counts")
+    record = GenerationRecord(**r)
+    for name in ("generation", "best_size", "evaluations", "total_evaluations"):
+        _whole(getattr(record, name))
+    for name in ("best", "mean", "median", "evals_per_s", "wall_time"):
+        _number(getattr(record, name))
+    return record
+
+
+class RunState:
+    """The state of one run; everything in :meth:`state` goes into a checkpoint."""
+
+    def __init__(
+        self, task: Task, cfg: EvolutionConfig, seed: int, skills: SkillSet,
+        rundir: RunDir | None, trials: int, record_info: Mapping[str, Any],
+        seed_text: str | None = None,
+    ) -> None:
+        self.task = task
+        self.cfg = cfg
+        self.seed = seed
+        self.skills = skills
+        self.rundir = rundir
+        self.trials = trials
+        self.record_info = dict(record_info)
+        self.seed_text = seed_text  # the seed FSA file's text, kept with each checkpoint
+        self.exported = False
+        self.seed_names: SeedNames | None = None
+        self.compiler = GenomeCompiler(task, skills)
+        self.rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(BREED_STREAM,)))
+        self.generation = 0
+        self.population: list[Genome] = []
+        self.best: tuple[Genome, float, int] | None = None  # genome, fitness, generation
+        self.history: list[GenerationRecord] = []
+        self.cache: dict[tuple[Any, ...], tuple[float, int]] = {}
+        # confirm_candidates: genomes that failed a confirmation, and its mean
+        self.confirm_failed: dict[tuple[Any, ...], float] = {}
+        # require_holds: genomes whose FSA did not hold, with the mean of those episodes, and
+        # the one that held (its key, the generation, and the check of its exported FSA)
+        self.holds_failed: dict[tuple[Any, ...], float] = {}
+        self.holds_passed: dict[str, Any] | None = None
+        self.export: Callable[[FSA], FSA] = lambda fsa: fsa  # what the run would write
+        self.evaluations = 0
+        self.wall_before = 0.0
+        self.next_uid = 0
+        self.elite_fitness: dict[int, float] = {}
+        # per island: its best rank key so far and the generation it was reached (restarts)
+        self.island_best: list[tuple[float, int]] = []
+        self.first_error: str | None = None  # the run's first exception, summarised
+        self.gen_faults = Faults()
+        self.fault_totals = Faults()  # over the run so far, for the progress line
+        self.t0 = time.perf_counter()
+
+    # -- checkpoint ------------------------------------------------------------------------
+    def state(self, fitness: list[float] | None = None) -> dict[str, Any]:
+        """Everything needed to continue, as plain JSON data. ``fitness``: the population
+        has been evaluated (the run ended), these are its fitnesses."""
+        def genome(g: Genome) -> list[Any]:
+            return [g.encode(), g.origin]
+
+        return {
+            "run": dict(self.record_info),
+            "seed": self.seed,
+            "config": self.cfg.to_dict(),
+            "generation": self.generation,
+            "population": [genome(g) for g in self.population],
+            "fitness": fitness,
+            "rng": self.rng.bit_generator.state,
+            "best": None if self.best is None else [
+                genome(self.best[0]), self.best[1], self.best[2]],
+            "history": [r.to_dict() for r in self.history],
+            "cache": [[list(k), total, count] for k, (total, count) in self.cache.items()],
+            "confirm_failed": [[list(k), mean] for k, mean in self.confirm_failed.items()],
+            "holds_failed": [[list(k), mean] for k, mean in self.holds_failed.items()],
+            "holds_passed": self.holds_passed,
+            "evaluations": self.evaluations,
+            "wall_time": self.wall(),
+            "next_uid": self.next_uid,
+            "elite_fitness": [[uid, f] for uid, f in self.elite_fitness.items()],
+            "island_best": [[f, since] for f, since in self.island_best],
+            "first_error": self.first_error,
+            "exported": self.exported,
+        }
+
+    def checkpoint(self, fitness: list[float] | None = None) -> dict[str, Any]:
+        """What a checkpoint holds: :meth:`state`, and the seed FSA file's text."""
+        return {**self.state(fitness), "seed_fsa_text": self.seed_text}
+
+    def restore(self, st: Mapping[str, Any], where: str) -> list[float] | None:
+        """Continue from a checkpoint's state, checking every value (a checkpoint is data
+        from a file); returns the fitnesses of an evaluated population, else None."""
+        try:
+            self.generation = _whole(st["generation"])
+            self.population = [self._genome(g) for g in st["population"]]
+            if len(self.population) != self.cfg.population:
+                raise ValueError("population size")
+            fitness = st.get("fitness")
+            if fitness is not None:
+                fitness = [_number(f) for f in fitness]
+                if len(fitness) != len(self.population):
+                    raise ValueError("fitness")
+            rng = st["rng"]
+            if not isinstance(rng, dict) or rng.get("bit_generator") != "PCG64":
+                raise ValueError("rng is not a PCG64 generator's state")
+            self.rng.bit_generator.state = rng
+            best = st["best"]
+            self.best = None if best is None else (
+                self._genome(best[0]), _number(best[1]), _whole(best[2]))
+            self.history = [_generation_record(r) for r in st["history"]]
+            self.cache = {
+                _tuples(k): (_number(total), _whole(count)) for k, total, count in st["cache"]
+            }
+            self.confirm_failed = {
+                _tuples(k): _number(mean) for k, mean in st.get("confirm_failed", [])
+            }
+            self.holds_failed = {
+                _tuples(k): _number(mean) for k, mean in st.get("holds_failed", [])
+            }
+            passed = st.get("holds_passed")
+            if passed is not None and not (isinstance(passed, dict)
+                                           and isinstance(passed.get("fresh"), dict)):
+                raise TypeError("holds_passed is not an object with its fresh check")
+            self.holds_passed = passed
+            self.evaluations = _whole(st["evaluations"])
+            self.wall_before = _number(st["wall_time"])
+            self.next_uid = _whole(st["next_uid"])
+            self.elite_fitness = {_whole(uid): _number(f) for uid, f in st["elite_fitness"]}
+            self.island_best = [(float(_number(f)), _whole(since))
+                                for f, since in st.get("island_best", [])]
+            self.exported = bool(st.get("exported", False))
+            first_error = st.get("first_error")
+            if first_error is not None and not isinstance(first_error, str):
+                raise TypeError("first_error is not text")
+            self.first_error = first_error
+            self.fault_totals = self.faults()  # checks each generation's fault counts
+        except CheckpointError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError,
+                RecursionError) as exc:
+            raise CheckpointError(
+                f"{where} is malformed ({type(exc).__name__}: {exc}); restore it from a copy "
+                "or start afresh"
+            ) from None
+        self.t0 = time.perf_counter()
+        return fitness
+
+    def _genome(self, data: Any) -> Genome:
+        code, origin = data
+        if not isinstance(origin, dict):
+            raise TypeError("a genome's origin is not an object")
+        g = Genome.decode(_tuples(code), origin)
+        problems = g.problems(self.skills)
+        if problems:
+            raise ValueError(f"a genome of the checkpoint is not one of this task: {problems[0]}")
+        return g
+
+    # -- what the rest of the run asks -----------------------------------------------------
+    def wall(self) -> float:
+        return self.wall_before + time.perf_counter() - self.t0
+
+    def uid(self) -> int:
+        self.next_uid += 1
+        return self.next_uid - 1
+
+    def rank_key(self, fitness: float, size: int) -> tuple[float, int]:
+        f = fitness if self.task.minimize else -fitness
+        return (f, size if self.cfg.parsimony else 0)
+
+    def faults(self) -> Faults:
+        """The run's faults so far, from its history."""
+        total = Faults()
+        for r in self.history:
+            if not isinstance(r.faults, dict):
+                raise TypeError("a generation's faults are not an object")
+            gen = Faults()
+            for k, v in r.faults.items():
+                if k in _FAULT_FIELDS:
+                    setattr(gen, k, _whole(v))
+            total.add(gen)
+        total.first_error = self.first_error
+        return total
