@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from skillcompose.checks import real_in, whole_in
 from skillcompose.limits import MAX_TRIALS  # the command line's bound, for files too
 
 from .errors import EvolutionConfigError
@@ -179,13 +180,13 @@ class EvolutionConfig:
 
         def whole(name: str, low: int, high: int = _MOST) -> None:
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+            if not whole_in(v, low, high):
                 problems.append(f"{name} = {v!r}: expected a whole number from {low} to "
                                 f"{high:,}")
 
         def prob(name: str) -> None:
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+            if not real_in(v, 0.0, 1.0):
                 problems.append(f"{name} = {v!r}: expected a probability in [0, 1]")
 
         whole("population", 2, 10**6)
@@ -207,13 +208,11 @@ class EvolutionConfig:
                             f"{', '.join(TOPOLOGIES)}")
         whole("holds_max_episodes", 1, 10**7)
         rate = self.success_rate
-        if rate is not None and (isinstance(rate, bool) or not isinstance(rate, (int, float))
-                                 or not 0.0 < rate < 1.0):
+        if rate is not None and not real_in(rate, 0.0, 1.0, low_open=True, high_open=True):
             problems.append(f"success_rate = {rate!r}: expected a rate between 0 and 1 "
                             "(exclusive), or None for the task's")
         conf = self.holds_confidence
-        if isinstance(conf, bool) or not isinstance(conf, (int, float)) or \
-                not 0.5 <= conf < 1.0:
+        if not real_in(conf, 0.5, 1.0, high_open=True):
             problems.append(f"holds_confidence = {conf!r}: expected a number from 0.5 to "
                             "below 1, e.g. 0.95")
         for name in ("unique_children", "confirm_feedback", "neutral", "cache", "parsimony",
@@ -226,21 +225,17 @@ class EvolutionConfig:
             whole("trials", 1, MAX_TRIALS)
         for name in ("param_sigma", "terminal_weight"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or \
-                    not 0 <= v < math.inf:
+            if not real_in(v, 0.0, math.inf, high_open=True):
                 problems.append(f"{name} = {v!r}: expected a finite number >= 0")
         limit = self.eval_time_limit
-        if limit is not None and (
-            isinstance(limit, bool) or not isinstance(limit, (int, float))
-            or not 0 < limit < math.inf
-        ):
+        if limit is not None and not real_in(limit, 0.0, math.inf, low_open=True,
+                                             high_open=True):
             problems.append(
                 f"eval_time_limit = {limit!r}: expected seconds > 0, or None for no limit"
             )
         whole("worker_max_jobs", 0)
         growth = self.worker_max_growth_mb
-        if isinstance(growth, bool) or not isinstance(growth, (int, float)) or \
-                not 0 <= growth < math.inf:
+        if not real_in(growth, 0.0, math.inf, high_open=True):
             problems.append(
                 f"worker_max_growth_mb = {growth!r}: expected MB >= 0 (0: no limit)"
             )

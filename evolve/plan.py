@@ -4,7 +4,6 @@ run's record made (:class:`Plan`)."""
 
 from __future__ import annotations
 
-import numbers
 import os
 import sys
 from collections.abc import Mapping
@@ -15,6 +14,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 from skillcompose import FSA, load_fsa, loads_fsa
+from skillcompose.checks import whole_in
 from skillcompose.limits import MAX_WORKERS
 from skillcompose.task import Task
 
@@ -67,9 +67,7 @@ def check_arguments(
     if cfg is not None and not isinstance(cfg, EvolutionConfig):
         raise TypeError(f"evolve(cfg=...) takes an EvolutionConfig, got {type(cfg).__name__}"
                         "; write EvolutionConfig(**PRESETS['robust']), say")
-    if workers is not None and (isinstance(workers, bool) or
-                                not isinstance(workers, numbers.Integral) or
-                                not 1 <= int(workers) <= MAX_WORKERS):
+    if workers is not None and not whole_in(workers, 1, MAX_WORKERS, numpy=True):
         raise EvolutionError(f"workers = {workers!r}: expected a whole number from 1 to "
                              f"{MAX_WORKERS} (or None: every core)")
     if progress is not None and not isinstance(progress, (bool, int)) and \
@@ -108,16 +106,15 @@ def make_plan(
         cfg = EvolutionConfig(**preset_settings(DEFAULT_PRESET, task.deterministic))
     simplify_result = True if simplify_result is None else simplify_result
     simplify_trials = 200 if simplify_trials is None else simplify_trials
-    if isinstance(simplify_trials, bool) or not isinstance(simplify_trials, int) or \
-            simplify_trials < 1:
+    if not whole_in(simplify_trials, 1):
         raise EvolutionError(f"simplify_trials must be a whole number >= 1, got "
                              f"{simplify_trials!r}")
     check_trials = 200 if check_trials is None else check_trials
-    if isinstance(check_trials, bool) or not isinstance(check_trials, int) or check_trials < 0:
+    if not whole_in(check_trials, 0):
         raise EvolutionError(f"check_trials must be a whole number >= 0, got {check_trials!r}")
     if seed is None:
         seed = int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> 1)
-    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+    if not whole_in(seed, 0, numpy=True):
         raise EvolutionError(f"seed must be a whole number >= 0, got {seed!r}")
     seed = int(seed)
     skills = SkillSet.from_task(task)

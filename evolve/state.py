@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from skillcompose import FSA
+from skillcompose.checks import is_real, is_whole, whole_in
 from skillcompose.task import Task
 
 from .config import EvolutionConfig
@@ -55,13 +56,13 @@ def _tuples(data: Any) -> Any:
 
 
 def _number(x: Any) -> float | int:
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
+    if not is_real(x):
         raise TypeError(f"expected a number, found {type(x).__name__}")
     return x
 
 
 def _whole(x: Any) -> int:
-    if isinstance(x, bool) or not isinstance(x, int) or x < 0:
+    if not whole_in(x, 0):
         raise TypeError(f"expected a whole number, found {x!r}")
     return x
 
@@ -72,7 +73,7 @@ def _generation_record(r: Any) -> GenerationRecord:
         raise TypeError(f"a history entry is {type(r).__name__}, not an object")
     faults = r.get("faults", {})
     if not isinstance(faults, dict) or not all(
-            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool)
+            isinstance(k, str) and is_whole(v)
             for k, v in faults.items()):
         raise TypeError("a history entry's faults are not counts")
     record = GenerationRecord(**r)

@@ -9,7 +9,6 @@ settings alone (:class:`TaskRef`).
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext, suppress
 from dataclasses import dataclass, field, replace
@@ -18,6 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .blackboard import Blackboard
+from .checks import real_in, whole_in
 from .errors import SkillcomposeError, clip, control_characters
 from .executor import CompiledFSA, FSARun, RunResult, compile_fsa, trial_rngs
 from .fsa import DEFAULT_TERMINALS, ERROR, FSA, MAX_STEP_LIMIT
@@ -198,8 +198,7 @@ class Task:
         me = f"task {self.name}"
         for field_, most in (("trials", MAX_TRIALS), ("step_limit", MAX_STEP_LIMIT)):
             value = getattr(self, field_)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or \
-                    not 1 <= int(value) <= most:
+            if not whole_in(value, 1, most, numpy=True):
                 raise TaskError(f"{me}: {field_} = {clip(repr(value), 40)}: expected a whole "
                                 f"number from 1 to {most:,}")
             object.__setattr__(self, field_, int(value))
@@ -224,14 +223,13 @@ class Task:
         if not isinstance(self.registry, Registry):
             raise TaskError(f"{me}: registry = {clip(repr(self.registry), 40)}: expected a "
                             "skillcompose.Registry holding the task's skills")
-        if isinstance(self.target, bool) or not isinstance(self.target, numbers.Real) or \
-                self.target != self.target or self.target in (math.inf, -math.inf):
+        if not real_in(self.target, -math.inf, math.inf, low_open=True, high_open=True,
+                       numpy=True):
             # NaN, and an infinite target every fitness reaches (solved in generation 0)
             raise TaskError(f"{me}: target = {clip(repr(self.target), 40)}: expected a "
                             "finite number")
         worst = self.error_fitness
-        if worst is not None and (isinstance(worst, bool) or not isinstance(
-                worst, numbers.Real) or worst != worst):
+        if worst is not None and not real_in(worst, -math.inf, math.inf, numpy=True):
             raise TaskError(f"{me}: error_fitness = {clip(repr(worst), 40)}: expected a "
                             "number (inf or -inf for the worst), or None")
         if not isinstance(self.settings, Mapping) or not all(
@@ -245,8 +243,7 @@ class Task:
                 raise TaskError(f"{me}: backend = {clip(repr(self.backend), 40)}: no skill "
                                 f"of its registry has it; choose one of {known or 'none'}")
         rate = self.success_rate
-        if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or \
-                not 0.0 < float(rate) < 1.0:
+        if not real_in(rate, 0.0, 1.0, low_open=True, high_open=True, numpy=True):
             raise TaskError(f"{me}: success_rate = {clip(repr(rate), 40)}: expected a rate "
                             "between 0 and 1 (exclusive), e.g. 0.95")
         object.__setattr__(self, "success_rate", float(rate))
