@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING, Any
 from skillcompose.arguments import add_json_option, json_output, print_json, set_hint
 from skillcompose.errors import SkillcomposeError, printable
 
-from .config import DEFAULT_PRESET, PRESET_NAMES, TOPOLOGIES, EvolutionConfig, preset_settings
+from .config import (
+    DEFAULT_PRESET,
+    PRESET_NAMES,
+    TOPOLOGIES,
+    EvolutionConfig,
+    preset_help,
+    preset_settings,
+)
 from .config import EVALUATION_BACKENDS as BACKENDS
 from .errors import EvolutionError
 
@@ -78,21 +85,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--initial-nodes", type=whole(1, 10_000),
                    help="initial nodes S (default 50, table 1)")
     p.add_argument("--preset", choices=PRESET_NAMES, default=DEFAULT_PRESET,
-                   help="starting settings: default (robust, or deterministic for a task "
-                   "whose episodes are all the same; solved means the exported FSA holds on "
-                   "fresh episodes, as in every preset but paper), paper (table 1 exactly, "
-                   "solved on one evaluation), robust (our best "
-                   "options: N=600, 3 shared trials, elitism 2, tournament 3, S=12, sigma "
-                   "0.1, solutions confirmed on 20 fresh trials) or push (for many "
-                   "parameters, e.g. a network's weights: N=150, 20 shared trials, "
-                   "every mutated node's parameters perturbed, confirmed on 200 fresh "
-                   "trials) or islands (robust on 4 islands of 150 with ring migration and "
-                   "unique children; add --cache on a deterministic task) or noisy "
-                   "(islands, the cache keeping each genome's trials, solutions confirmed "
-                   "on 100 fixed fresh trials, all of which must pass) or deterministic "
-                   "(for tasks whose fitness never changes: N=30, cache, unique children, "
-                   "elitism 2, tournament 5, S=12); the flags below "
-                   "override it")
+                   help=preset_help().replace("%", "%%"))
     p.add_argument("--success-rate", type=number(0.0, 1.0), dest="success_rate",
                    metavar="RATE",
                    help="solved means the exported FSA reaches the target on at least this "
@@ -394,6 +387,11 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
             f"{args.resume}: the run finished in generation {result.generations} ({why}); "
             + (f"wrote again {restored}, which had been deleted; nothing else was changed."
                if restored else "nothing was changed.")
+            + (" A solved run is not extended; to search on from its FSA, start a new run: "
+               f"skillcompose evolve {shlex.quote(task.ref.module if task.ref else 'TASK')} "
+               + "".join(f"--set {shlex.quote(f'{k}={v}')} " for k, v in task.settings.items())
+               + f"--seed-fsa {shlex.quote(str(Path(args.resume) / 'best.yaml'))} --out "
+               "NEW_FOLDER" if result.solved else "")
             + ("" if result.solved else
                f" Extend it with: skillcompose evolve --resume {args.resume} "
                f"--generations {2 * max(result.budget, 1)}")

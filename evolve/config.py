@@ -16,8 +16,8 @@ from skillcompose.limits import MAX_TRIALS  # the command line's bound, for file
 
 from .errors import EvolutionConfigError
 
-__all__ = ["DEFAULT_PRESET", "PRESETS", "PRESET_NAMES", "TOPOLOGIES", "EvolutionConfig",
-           "preset_settings"]
+__all__ = ["DEFAULT_PRESET", "PRESETS", "PRESET_ABOUT", "PRESET_NAMES", "TOPOLOGIES",
+           "EvolutionConfig", "preset_help", "preset_settings"]
 
 _MOST = 10**9  # generations, intervals, jobs: bounded, far beyond any real run
 
@@ -389,3 +389,27 @@ def preset_settings(name: str, deterministic: bool) -> dict[str, Any]:
 
 PRESET_NAMES = (DEFAULT_PRESET, *PRESETS)
 """Every name ``--preset`` takes."""
+
+PRESET_ABOUT = {
+    DEFAULT_PRESET: "robust, or deterministic for a task whose episodes are all the same",
+    "paper": "table 1 exactly, solved on one evaluation",
+    "robust": "our best options for noisy tasks, chosen on pouring water",
+    "islands": "robust on 4 islands with ring migration and unique children",
+    "noisy": "islands, each genome's trials kept, a strict confirmation",
+    "deterministic": "a small population that evolves long, for tasks whose fitness never "
+                     "changes",
+    "push": "for many parameters, such as a network's weights",
+}
+"""What each preset is for, in one line; its settings are :data:`PRESETS`'."""
+
+
+def preset_help() -> str:
+    """The command line's description of the presets, written from :data:`PRESETS` and
+    :data:`PRESET_ABOUT`: what each is for and what it sets."""
+    parts = []
+    for name in PRESET_NAMES:
+        sets = ", ".join(f"{k}={v}" for k, v in PRESETS.get(name, {}).items())
+        parts.append(f"{name}: {PRESET_ABOUT[name]}" + (f" ({sets})" if sets else ""))
+    return ("starting settings, which the flags below override; every preset but paper "
+            "calls a run solved when its exported FSA holds on fresh episodes. "
+            + "; ".join(parts))

@@ -30,7 +30,10 @@ class Progress:
         from tqdm import tqdm
 
         done = len(run.history)
-        so_far = run.best[1] if run.best is not None else rec.best
+        # the best evaluation so far, which never goes back (the run's own best may: a
+        # candidate that fails its confirmation or holds test is demoted)
+        bests = [r.best for r in run.history if not math.isnan(r.best)] or [rec.best]
+        so_far = min(bests) if run.task.minimize else max(bests)
         postfix = (f"best {so_far:.4g} (this generation {rec.best:.4g}, size "
                    f"{rec.best_size}), {rec.evals_per_s:,.0f} evals/s")
         faults = run.fault_totals.describe()

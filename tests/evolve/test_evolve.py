@@ -492,3 +492,14 @@ def test_config_switches_must_be_true_or_false() -> None:
         with pytest.raises(EvolutionError, match=rf"{name} = 'no': expected true or false"):
             wrong: dict[str, Any] = {name: "no"}
             EvolutionConfig(**wrong)
+
+
+def test_the_preset_help_is_written_from_the_presets() -> None:
+    from skillcompose.evolve.config import PRESET_ABOUT, PRESET_NAMES, PRESETS, preset_help
+
+    text = preset_help()
+    assert set(PRESET_ABOUT) == set(PRESET_NAMES)
+    for name, settings in PRESETS.items():
+        assert f"{name}: {PRESET_ABOUT[name]}" in text
+        for key, value in settings.items():
+            assert f"{key}={value}" in text

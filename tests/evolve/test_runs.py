@@ -513,3 +513,38 @@ def test_evolve_help_is_for_people(capsys: pytest.CaptureFixture[str]) -> None:
     assert "--resume" in text and "--generations 400" in text
     for internal in ("``", ":func:", "Wired into", "register_cli", "main(argv)"):
         assert internal not in text
+
+
+def test_extending_a_solved_run_says_how_to_search_on(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    d = tmp_path / "run"
+    assert skillcompose_main(["evolve", "examples.toy_task", "--seed", "1", "--quiet",
+                              "--workers", "1", "--out", str(d)]) == 0
+    capsys.readouterr()
+    assert skillcompose_main(["evolve", "--resume", str(d), "--generations", "2000",
+                              "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "(solved); nothing was changed. A solved run is not extended" in out
+    assert "skillcompose evolve examples.toy_task --set p_fail=0.1" in out
+    assert f"--seed-fsa {d / 'best.yaml'} --out NEW_FOLDER" in out
+
+
+def test_the_progress_line_shows_the_best_evaluation_so_far() -> None:
+    """A candidate demoted by its holds test or confirmation (the run's best then takes its
+    measured mean, 0.9 here) must not make 'best' go back up on the progress line."""
+    import io
+    from types import SimpleNamespace
+
+    from skillcompose.evolve.progress import Progress
+    from skillcompose.evolve.result import GenerationRecord
+
+    records = [GenerationRecord(g, best, 1.0, 1.0, 3, 10, 10 * (g + 1), 100.0, 6.0 * g)
+               for g, best in enumerate([1.0, 0.5, 0.8])]
+    run = SimpleNamespace(history=records, best=(None, 0.9, 1),
+                          task=SimpleNamespace(minimize=True),
+                          cfg=SimpleNamespace(generations=10),
+                          fault_totals=SimpleNamespace(describe=lambda: ""))
+    log = io.StringIO()
+    Progress(log).show(run, records[-1])  # type: ignore[arg-type]
+    line = log.getvalue().splitlines()[-1]
+    assert "best 0.5 (this generation 0.8," in line
