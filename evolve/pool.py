@@ -148,6 +148,9 @@ def _worker_main(
     past the end. A worker that has served its ``limits`` answers ``"recycle"`` between two
     chunks instead, and exits: the parent puts a fresh one in its place.
     """
+    # Ctrl-C reaches the whole process group: the parent answers it (and ends its workers);
+    # a worker that took it too would print its own traceback before the parent's one line
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if parent_pid:
         _die_with_parent(parent_pid, inherited)
     if cpu is not None:

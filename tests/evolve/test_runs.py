@@ -548,3 +548,30 @@ def test_the_progress_line_shows_the_best_evaluation_so_far() -> None:
     Progress(log).show(run, records[-1])  # type: ignore[arg-type]
     line = log.getvalue().splitlines()[-1]
     assert "best 0.5 (this generation 0.8," in line
+
+
+@pytest.mark.slow  # evolves for a few seconds before the Ctrl-C
+def test_ctrl_c_on_the_process_group_gives_one_line(tmp_path: Path) -> None:
+    """Ctrl-C reaches every process of the group: the pool's workers used to print
+    'Process ForkProcess-1:' and a traceback each before the command's one line."""
+    import signal
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "skillcompose", "evolve", "examples.toy_task", "--preset",
+         "paper", "--set", "p_fail=0.6", "--population", "4000", "--generations", "1000",
+         "--workers", "2", "--out", str(tmp_path / "run")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline and not (tmp_path / "run" / "checkpoint.json").exists():
+            time.sleep(0.2)
+        time.sleep(1.0)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130
+    assert "ForkProcess" not in err and "Traceback" not in err, err
+    assert err.strip().splitlines()[-1].startswith("interrupted; continue the run with: ")
