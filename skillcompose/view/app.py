@@ -14,22 +14,19 @@ or the terminal as a traceback.
 
 from __future__ import annotations
 
-import html
-import ipaddress
 import logging
 import sys
+import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlencode, urlsplit
+from urllib.parse import urlencode
 
 from nicegui import app, ui
 from nicegui import run as background
 from starlette.requests import Request
 
-from skillcompose.errors import SkillcomposeError
-from skillcompose.origins import inside, is_file_target, module_origins
+from skillcompose.errors import FSAValidationError, SkillcomposeError, clip, one_line, printable
 from skillcompose.registry import Registry
 from skillcompose.task import load_task, parse_settings
 
@@ -40,72 +37,67 @@ from .data import (
     mermaid,
     pid_alive,
     read_fsa,
-    read_history,
+    read_fsa_file,
     read_run_info,
 )
 from .episode import Episode, run_episode
-from .live import LIVE_SUFFIX, read_live
+from .folder import walk_below
+from .fsa_parts import STYLE, graph_legend, states_table, yaml_html
+from .guard import Guard, cookie_name
+from .live import LIVE_SUFFIX, live_problem, read_live
+from .trust import (
+    ViewerConfig,
+    address_problem,
+    checked_settings,
+    file_below,
+    request_refusal,
+    seed_of,
+    task_refusal,
+)
 
-__all__ = ["ViewerConfig", "build", "fsa_files", "live_files"]
+__all__ = ["ViewerConfig", "build", "fsa_files", "live_files", "request_refusal",
+           "task_refusal"]
 
 log = logging.getLogger("skillcompose.view")
 
 REFRESH_S = 1.0  # how often the runs page re-reads the run directories
 LIVE_REFRESH_S = 0.25
+LIVE_LIST_S = 1.0  # how often the live page looks for new live files
 REPLAY_TIMEOUT_S = 300.0  # the longest a replay's episode may take before its page fails
 MAX_FILES = 500
+MAX_LIST_DEPTH = 8  # how deep below the folder FSA and live files are looked for
+MAX_ERROR_CHARS = 2000  # the most of an error message a page shows
+MAX_TASK_ERROR_CHARS = 300  # ... of an error loading a task (it may quote other files)
+MERMAID = {"securityLevel": "strict"}  # no HTML but Mermaid's own, sanitised; no clicks
 COLOURS = ("#2563eb", "#dc2626", "#059669", "#d97706", "#7c3aed", "#0891b2", "#db2777",
            "#65a30d", "#475569", "#ea580c")
 
 
-@dataclass(frozen=True)
-class ViewerConfig:
-    """What ``skillcompose view`` was asked to show."""
-
-    root: Path  # the folder whose runs, FSA files and live files are listed
-    file: Path | None = None  # an FSA file given on the command line
-    task: str | None = None  # a task module for units, validation and replays
-    settings: Mapping[str, Any] = field(default_factory=dict)
-    label: str = ""  # the root as the command line named it, for the pages to show
-
-
 def fsa_files(config: ViewerConfig) -> list[Path]:
     """The FSA files the pages offer: the given file, then ``*.fsa.yaml``, ``best.yaml`` and
-    ``best_evolved.yaml`` below the root (hidden folders and the venv skipped)."""
+    ``best_evolved.yaml`` below the root (hidden folders skipped, linked folders not
+    entered, links leading outside the root left out)."""
     out: list[Path] = [config.file] if config.file is not None else []
-    patterns = ("*.fsa.yaml", "best.yaml", "best_evolved.yaml")
-    try:
-        for pattern in patterns:
-            for p in sorted(config.root.rglob(pattern)):
-                rel = p.relative_to(config.root).parts
-                if any(part.startswith(".") for part in rel[:-1]) or p in out:
-                    continue
-                out.append(p)
-                if len(out) >= MAX_FILES:
-                    return out
-    except OSError:
-        pass
-    return out
+    names = ("best.yaml", "best_evolved.yaml")
+    out += [p for p in walk_below(config.root, lambda n: n.endswith(".fsa.yaml") or n in names,
+                                  max_depth=MAX_LIST_DEPTH, max_files=MAX_FILES)
+            if p not in out]
+    return out[:MAX_FILES]
 
 
 def live_files(root: Path) -> list[Path]:
-    try:
-        return sorted(p for p in root.rglob(f"*{LIVE_SUFFIX}")
-                      if not any(part.startswith(".") for part in
-                                 p.relative_to(root).parts[:-1]))[:MAX_FILES]
-    except OSError:
-        return []
+    return list(walk_below(root, lambda n: n.endswith(LIVE_SUFFIX),
+                           max_depth=MAX_LIST_DEPTH, max_files=MAX_FILES))
 
 
-def _allowed(config: ViewerConfig, path: Path) -> bool:
-    """Only the given file and files below the root are shown."""
-    try:
-        resolved = path.resolve()
-    except OSError:
-        return False
-    if config.file is not None and resolved == config.file.resolve():
-        return True
-    return resolved.is_relative_to(config.root.resolve())
+def _error_text(exc: BaseException, limit: int = MAX_ERROR_CHARS) -> str:
+    """An error as a page shows it: printable (one line, or one line per problem listed),
+    at most ``limit`` characters."""
+    return clip(printable(exc), limit)
+
+
+def _error(text: str) -> None:
+    ui.label(text).classes("text-red-700 whitespace-pre-wrap").props("data-testid=error")
 
 
 def _safe(where: str, build: Callable[[], None]) -> None:
@@ -113,12 +105,10 @@ def _safe(where: str, build: Callable[[], None]) -> None:
     try:
         build()
     except SkillcomposeError as exc:
-        ui.label(f"{where}: {exc}").classes("text-red-700 whitespace-pre-wrap") \
-            .props("data-testid=error")
+        _error(f"{where}: {_error_text(exc)}")
     except Exception as exc:
-        log.warning("%s: %s: %s", where, type(exc).__name__, exc)
-        ui.label(f"{where}: unexpected {type(exc).__name__}: {exc}") \
-            .classes("text-red-700").props("data-testid=error")
+        log.warning("%s: %s: %s", where, type(exc).__name__, clip(one_line(str(exc)), 300))
+        _error(f"{where}: unexpected {type(exc).__name__}: {_error_text(exc, 300)}")
 
 
 def _raise(exc: BaseException) -> None:
@@ -147,51 +137,27 @@ def _task_registry(target: str | None, settings: Mapping[str, Any]) -> tuple[Reg
     return task.registry, f"task {task.name}"
 
 
-def request_refusal(headers: Mapping[str, str]) -> str | None:
-    """Why a page request may not have the viewer import a task it names (None: it may): it
-    came from another site's page (the browser says so in ``Sec-Fetch-Site``; any page
-    open in the person's browser can send a request to this machine), or it named a host
-    that is not an address (a name of someone else's that was made to point at this
-    machine)."""
-    if headers.get("sec-fetch-site", "") in ("cross-site", "same-site"):
-        return "the request came from another site's page"
-    host = urlsplit("//" + headers.get("host", "")).hostname or ""
-    if host != "localhost":
-        try:
-            ipaddress.ip_address(host)
-        except ValueError:
-            return f"the request named host {host!r}, not an address of this machine"
+def _address(**values: str) -> str | None:
+    """Why a page's address cannot be used (its first bad value), or None."""
+    for name, value in values.items():
+        problem = address_problem(name, value)
+        if problem is not None:
+            return problem
     return None
 
 
-def task_refusal(config: ViewerConfig, target: str, request: str | None) -> str | None:
-    """Why the viewer will not import task module ``target`` (None: it may). The task given
-    on the command line always may. One named by a page's address or by a run's
-    ``run.json`` only as a module name (not a file), found outside the folder being viewed
-    (code that came with the runs viewed is never run), and only for a request of this
-    viewer's own pages or the person's (``request``: :func:`request_refusal`'s answer)."""
-    if config.task is not None and target == config.task:
-        return None
-    fix = f"give it on the command line: skillcompose view ... --task {target}"
-    if request is not None:
-        return f"task {target} not imported: {request}; open the page from the viewer, or {fix}"
-    if is_file_target(target):
-        return (f"task {target} not imported: the viewer imports a task file only when it is "
-                f"given on its command line; {fix}")
-    for origin in module_origins(target):
-        if inside(origin, config.root) or (
-                config.file is not None and inside(origin, config.file.parent)):
-            return (f"task {target} not imported: it would be imported from {origin}, inside "
-                    "the folder being viewed, and code that came with the runs viewed is "
-                    f"never run; check it, then {fix}")
-    return None
+def _file_of(config: ViewerConfig, text: str) -> Path:
+    """The file a page's address names: relative to the root unless absolute."""
+    path = Path(text)
+    return path if path.is_absolute() else config.root / path
 
 
-def _task_of_run(path: Path) -> tuple[str | None, dict[str, Any]]:
-    """The task module and settings of the run directory holding ``path``, if any."""
+def _task_of_run(root: Path, path: Path) -> tuple[str | None, dict[str, Any]]:
+    """The task module and settings of the run directory holding ``path`` (inside
+    ``root``), if any."""
     try:
-        info, problem = read_run_info(path.parent)
-    except FileNotFoundError:
+        info, problem = read_run_info(path.parent, root)
+    except (FileNotFoundError, ValueError):
         return None, {}
     module = str(info.get("task_module", ""))
     if problem or not module:
@@ -206,8 +172,8 @@ def _task_of_run(path: Path) -> tuple[str | None, dict[str, Any]]:
 def _run_row(run: RunSummary) -> dict[str, Any]:
     return {
         "name": run.name, "task": run.task, "status": run.status,
-        "generations": run.generations, "best": _fmt(run.best),
-        "success": run.success_text,
+        "generations": f"{run.generations}+ (reading)" if run.reading else run.generations,
+        "best": _fmt(run.best), "success": run.success_text,
         "settings": run.settings + (f" ({run.problem})" if run.problem else ""),
         "seed": "–" if run.seed is None else run.seed,
         "fsa_url": "/fsa?" + urlencode({"path": f"{run.name}/best.yaml"}),
@@ -218,15 +184,10 @@ def _run_row(run: RunSummary) -> dict[str, Any]:
 
 
 def _chart_options(runs: list[RunSummary], chosen: set[str]) -> dict[str, Any]:
-    series = []
-    for k, run in enumerate(r for r in runs if r.name in chosen):
-        history = read_history(run.path / "history.jsonl")
-        series.append({
-            "name": run.name, "type": "line", "showSymbol": True, "symbolSize": 5,
-            "color": COLOURS[k % len(COLOURS)],
-            "data": [[h["generation"], h.get("best")] for h in history
-                     if isinstance(h.get("best"), (int, float))],
-        })
+    series = [{
+        "name": run.name, "type": "line", "showSymbol": True, "symbolSize": 5,
+        "color": COLOURS[k % len(COLOURS)], "data": [list(p) for p in run.points],
+    } for k, run in enumerate(r for r in runs if r.name in chosen)]
     return {
         "animation": False,
         "title": {"text": "best fitness per generation", "left": "center",
@@ -242,8 +203,10 @@ def _chart_options(runs: list[RunSummary], chosen: set[str]) -> dict[str, Any]:
 
 
 def _runs_page(config: ViewerConfig) -> None:
+    """The runs table and chart; filled, and kept up to date, by a timer whose reads of the
+    run directories run in a worker thread (the histories read incrementally and bounded,
+    :mod:`.data`), so that a large history never holds up other pages."""
     _header("Runs")
-    runs = find_runs(config.root)
     ui.label(f"Runs under {_shown(config, config.root)}").classes("text-xl font-semibold")
     count = ui.label("").props("data-testid=run-count").classes("text-slate-600")
     columns: list[dict[str, Any]] = [
@@ -256,9 +219,8 @@ def _runs_page(config: ViewerConfig) -> None:
         {"name": "seed", "label": "seed", "field": "seed"},
         {"name": "settings", "label": "settings", "field": "settings", "align": "left"},
     ]
-    table = ui.table(columns=columns, rows=[_run_row(r) for r in runs], row_key="name",
-                     selection="multiple").classes("w-full") \
-        .props("data-testid=runs-table flat bordered dense")
+    table = ui.table(columns=columns, rows=[], row_key="name", selection="multiple") \
+        .classes("w-full").props("data-testid=runs-table flat bordered dense")
     table.add_slot("body-cell-status", r"""
         <q-td :props="props">
           <q-badge :label="props.value" :color="{running: 'blue', finished: 'green',
@@ -270,20 +232,20 @@ def _runs_page(config: ViewerConfig) -> None:
           <a :href="props.row.fsa_url" class="text-blue-700 ml-3">FSA</a>
           <a :href="props.row.replay_url" class="text-blue-700 ml-2">replay</a>
         </q-td>""")
-    table.selected = [_run_row(r) for r in runs[: len(COLOURS)]]
     ui.label("Tick runs to compare them on the chart; FSA opens a run's best FSA, replay "
              "runs it once.") \
         .classes("text-sm text-slate-500")
-    chart = ui.echart(_chart_options(runs, {r["name"] for r in table.selected})) \
+    chart = ui.echart(_chart_options([], set())) \
         .classes("w-full h-96").props("data-testid=fitness-chart")
     chart.classes("fitness-chart")
-    state: dict[str, Any] = {"key": None}
+    state: dict[str, Any] = {"key": None, "runs": None, "first": True}
 
-    def refresh(force: bool = False) -> None:
-        current = find_runs(config.root)
+    def show(current: list[RunSummary], force: bool) -> None:
+        if state["first"]:  # the first listing ticks the first runs
+            state["first"] = False
+            table.selected = [_run_row(r) for r in current[: len(COLOURS)]]
         chosen = {r["name"] for r in table.selected}
-        key = tuple((r.name, r.status, r.generations, r.best, r.success) for r in current), \
-            tuple(sorted(chosen))
+        key = tuple(current), tuple(sorted(chosen))
         count.text = f"{len(current)} run(s)"
         if key == state["key"] and not force:
             return
@@ -296,67 +258,41 @@ def _runs_page(config: ViewerConfig) -> None:
         chart.options.update(_chart_options(current, {r["name"] for r in table.selected}))
         chart.update()
 
-    table.on_select(lambda _: refresh(force=True))
-    refresh()
-    ui.timer(REFRESH_S, lambda: _safe("runs", refresh))
+    async def refresh() -> None:
+        try:
+            current = await background.io_bound(find_runs, config.root)
+        except Exception as exc:  # as _safe: one line in the page, never a traceback
+            count.text = f"runs: unexpected {type(exc).__name__}: {_error_text(exc, 300)}"
+            return
+        if current is not None:
+            state["runs"] = current
+            _safe("runs", lambda: show(current, False))
+
+    def reselect() -> None:
+        if state["runs"] is not None:
+            _safe("runs", lambda: show(state["runs"], True))
+
+    table.on_select(lambda _: reselect())
+    ui.timer(REFRESH_S, refresh)
 
 
 # ---------------------------------------------------------------------------------------
 # FSA files
 # ---------------------------------------------------------------------------------------
-def _yaml_html(view: FSAView) -> str:
-    """The file's lines, numbered; a problem's line is marked and its messages follow it."""
-    by_line: dict[int, list[str]] = {}
-    for p in view.problems:
-        if p.line is not None:
-            by_line.setdefault(p.line, []).append(p.render())
-    out = ['<pre class="yaml-view">']
-    for k, line in enumerate(view.text.splitlines() or [""], start=1):
-        bad = k in by_line
-        cls = "yaml-line bad" if bad else "yaml-line"
-        out.append(f'<span class="{cls}" data-line="{k}"><span class="ln">{k:>4}</span> '
-                   f"{html.escape(line)}</span>")
-        for msg in by_line.get(k, ()):
-            out.append(f'<span class="yaml-problem" data-line="{k}">     ▲ '
-                       f"{html.escape(msg)}</span>")
-    out.append("</pre>")
-    return "".join(out)
-
-
-_STYLE = """
-<style>
-.yaml-view { max-width: 100%; font-size: 12.5px; line-height: 1.45; background: #f8fafc;
-  border: 1px solid #e2e8f0; border-radius: 6px; padding: 8px 0; overflow-x: auto; margin: 0; }
-.yaml-line, .yaml-problem { display: block; padding: 0 10px; white-space: pre; }
-.yaml-line .ln { color: #94a3b8; user-select: none; }
-.yaml-line.bad { background: #fee2e2; }
-.yaml-problem { color: #b91c1c; background: #fef2f2; font-weight: 600; white-space: pre-wrap; }
-.fsa-graph svg { max-width: 100% !important; height: auto; }
-</style>
-"""
-
-
-def _graph_legend() -> None:
-    with ui.row().classes("gap-3 text-xs text-slate-600 items-center"):
-        for text, style in (("start", "border:3px solid #2563eb"),
-                            ("terminal outcome", "background:#ecfdf5;border:1px solid #059669"),
-                            ("unreachable", "background:#e5e7eb;border:1px dashed #9ca3af"),
-                            ("trap (no end reachable)",
-                             "background:#fee2e2;border:2px solid #dc2626"),
-                            ("active", "background:#fde047;border:3px solid #ca8a04")):
-            with ui.row().classes("items-center gap-1"):
-                ui.html(f'<span style="display:inline-block;width:14px;height:14px;'
-                        f'border-radius:3px;{style}"></span>', sanitize=False)
-                ui.label(text)
+def _outside(config: ViewerConfig, chosen: Path) -> None:
+    _error(f"{chosen}: not below {_shown(config, config.root)} (links followed); the viewer "
+           "shows only files there")
 
 
 def _fsa_page(config: ViewerConfig, path: str, task: str, request: str | None = None) -> None:
     _header("FSA")
-    ui.add_head_html(_STYLE)
+    ui.add_head_html(STYLE)
+    bad = _address(path=path, task=task)
+    if bad is not None:
+        _error(bad)
+        return
     files = fsa_files(config)
-    chosen = Path(path) if path else (files[0] if files else None)
-    if chosen is not None and not chosen.is_absolute():
-        chosen = config.root / chosen
+    chosen = _file_of(config, path) if path else (files[0] if files else None)
     options = {str(f): _rel(config, f) for f in files}
     if chosen is not None:
         options.setdefault(str(chosen), _rel(config, chosen))
@@ -372,26 +308,29 @@ def _fsa_page(config: ViewerConfig, path: str, task: str, request: str | None = 
         ui.label(f"No FSA file under {_shown(config, config.root)} (files named *.fsa.yaml "
                  "or best.yaml).")
         return
-    if not _allowed(config, chosen):
-        ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
-                 "files there") \
-            .classes("text-red-700").props("data-testid=error")
+    root = file_below(config, chosen)
+    if root is None:
+        _outside(config, chosen)
         return
 
     def build() -> None:
+        assert chosen is not None and root is not None
         target, settings = (task or config.task), dict(config.settings)
         if not target:
-            target, settings = _task_of_run(chosen)
+            target, settings = _task_of_run(root, chosen)
         refusal = task_refusal(config, target, request) if target else None
+        if refusal is None and target:
+            settings, refusal = checked_settings(config, settings)
         registry, what = None, ""
         if refusal is not None:
             ui.label(refusal).classes("text-orange-700").props("data-testid=task-refused")
         else:
             try:
                 registry, what = _task_registry(target, settings)
-            except SkillcomposeError as exc:
-                ui.label(f"task {target}: {exc}").classes("text-orange-700")
-        view = read_fsa(chosen, registry, what)
+            except SkillcomposeError as exc:  # it may quote other files: a short line
+                ui.label(f"task {target}: {_error_text(exc, MAX_TASK_ERROR_CHARS)}") \
+                    .classes("text-orange-700").props("data-testid=task-error")
+        view = read_fsa(chosen, registry, what, root=root)
         _fsa_body(view, _shown(config, view.path))
 
     _safe(_shown(config, chosen), build)
@@ -438,26 +377,16 @@ def _fsa_body(view: FSAView, shown: str) -> None:
                     if names:
                         ui.label(f"{', '.join(names)}: {what}").classes(
                             "text-sm text-orange-700").props("data-testid=flag")
-                _graph_legend()
+                graph_legend()
                 ui.mermaid(mermaid(fsa, params={r.name: r.params for r in view.rows},
-                                   unreachable=view.unreachable, traps=view.traps)) \
+                                   unreachable=view.unreachable, traps=view.traps),
+                           config=MERMAID) \
                     .classes("fsa-graph w-full").props("data-testid=fsa-graph")
-                _states_table(view)
+                states_table(view)
         with ui.column().classes("w-2/5 min-w-0"):
             ui.label(shown).classes("text-sm text-slate-600")
-            ui.html(_yaml_html(view), sanitize=False).classes("w-full") \
-                .props("data-testid=yaml")
-
-
-def _states_table(view: FSAView) -> None:
-    rows = [{"state": r.name, "skill": r.skill, "params": "; ".join(r.params) or "–",
-             "transitions": "; ".join(r.transitions), "flags": ", ".join(r.flags)}
-            for r in view.rows]
-    ui.table(columns=[
-        {"name": c, "label": c, "field": c, "align": "left"}
-        for c in ("state", "skill", "params", "transitions", "flags")
-    ], rows=rows, row_key="state").classes("w-full").props("dense flat bordered wrap-cells "
-                                                           "data-testid=states-table")
+            ui.html(yaml_html(view)).classes("w-full") \
+                .props("data-testid=yaml")  # escaped here, and sanitised (DOMPurify) there
 
 
 # ---------------------------------------------------------------------------------------
@@ -466,14 +395,18 @@ def _states_table(view: FSAView) -> None:
 async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, settings: str,
                        backend: str, request: str | None = None) -> None:
     _header("Replay")
+    bad = _address(path=path, task=task, seed=seed, settings=settings, backend=backend)
+    if bad is not None:
+        _error(bad)
+        return
     files = fsa_files(config)
-    chosen = path or (str(files[0]) if files else "")
-    if chosen and not Path(chosen).is_absolute():
-        chosen = str(config.root / chosen)
+    chosen = str(_file_of(config, path)) if path else (str(files[0]) if files else "")
+    root = file_below(config, Path(chosen)) if chosen else None
     target = task or config.task or ""
-    if not target and chosen:
-        target = _task_of_run(Path(chosen))[0] or ""
+    if not target and root is not None:
+        target = _task_of_run(root, Path(chosen))[0] or ""
     setting_text = settings or ", ".join(f"{k}={v}" for k, v in config.settings.items())
+    number = seed_of(seed)
     with ui.row().classes("items-end gap-4 w-full"):
         file_in = ui.select({str(f): _rel(config, f) for f in files} | (
             {chosen: chosen} if chosen and chosen not in {str(f) for f in files} else {}),
@@ -483,7 +416,7 @@ async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, se
             .props("data-testid=task-input")  # a refused task is not offered to Run
         set_in = ui.input("settings (name=value, ...)", value=setting_text).classes("w-56")
         backend_in = ui.input("backend", value=backend, placeholder="the task's").classes("w-36")
-        seed_in = ui.number("seed", value=int(seed) if seed.isdigit() else 0, min=0,
+        seed_in = ui.number("seed", value=number if isinstance(number, int) else 0, min=0,
                             precision=0).classes("w-24")
 
         def go() -> None:
@@ -496,28 +429,51 @@ async def _replay_page(config: ViewerConfig, path: str, task: str, seed: str, se
     if not (chosen and target):
         ui.label("Choose an FSA file and a task module (e.g. examples.pour_water), then Run.")
         return
-    if not _allowed(config, Path(chosen)):
-        ui.label(f"{chosen}: not below {_shown(config, config.root)}; the viewer shows only "
-                 "files there") \
-            .classes("text-red-700").props("data-testid=error")
+    if root is None:
+        _outside(config, Path(chosen))
+        return
+    if isinstance(number, str):
+        _error(number)
         return
     if refusal is not None:
         ui.label(refusal).classes("text-orange-700").props("data-testid=task-refused")
         return
-
-    # The episode runs in a worker thread, so a long one does not stop the server answering
-    # other pages meanwhile; this page is sent when it ends (see REPLAY_TIMEOUT_S).
-    holder = ui.column().classes("w-full")
-    pairs = [s.strip() for s in setting_text.split(",") if s.strip()]
     try:
-        episode = await background.io_bound(run_episode, Path(chosen), target,
-                                     int(seed_in.value or 0), parse_settings(pairs),
-                                     backend=backend.strip() or None)
+        chosen_settings, refusal = checked_settings(config, parse_settings(
+            [s.strip() for s in setting_text.split(",") if s.strip()]))
+    except SkillcomposeError as exc:
+        _error(f"replay: {_error_text(exc, MAX_TASK_ERROR_CHARS)}")
+        return
+    if refusal is not None:
+        ui.label(refusal).classes("text-orange-700").props("data-testid=task-refused")
+        return
+    await _replay_episode(Path(chosen), root, target, number, chosen_settings, backend)
+
+
+async def _replay_episode(path: Path, root: Path, target: str, seed: int,
+                          settings: Mapping[str, Any], backend: str) -> None:
+    """Read the FSA (inside ``root``), run its episode and show it. The episode runs in a
+    worker thread, so a long one does not stop the server answering other pages meanwhile;
+    this page is sent when it ends (see REPLAY_TIMEOUT_S)."""
+    holder = ui.column().classes("w-full")
+    try:
+        fsa = read_fsa_file(path, root)  # the file asked for: its problems in full
+    except SkillcomposeError as exc:
+        with holder:
+            _error(f"replay: {_error_text(exc)}")
+        return
+    try:
+        episode = await background.io_bound(run_episode, path, target, seed, settings,
+                                            backend=backend.strip() or None, fsa=fsa)
         failure = None
     except Exception as exc:  # shown by _safe below, as every page part's errors are
         episode, failure = None, exc
 
     def build() -> None:
+        if isinstance(failure, SkillcomposeError) and not isinstance(
+                failure, FSAValidationError):  # the task's: it may quote other files
+            _error(f"replay: {_error_text(failure, MAX_TASK_ERROR_CHARS)}")
+            return
         if failure is not None:
             raise failure
         assert episode is not None
@@ -549,7 +505,7 @@ def _episode_view(ep: Episode) -> None:
     robot: Callable[[Mapping[str, Any] | None], None] | None = None
     with ui.row().classes("w-full no-wrap gap-6 items-start"):
         with ui.column().classes("w-2/5" if ep.kinematic else "w-1/2"):
-            graph = ui.mermaid(mermaid(ep.fsa, active=ep.fsa.start)) \
+            graph = ui.mermaid(mermaid(ep.fsa, active=ep.fsa.start), config=MERMAID) \
                 .classes("fsa-graph w-full").props("data-testid=replay-graph")
         with ui.column().classes("w-3/5 gap-2" if ep.kinematic else "w-1/2 gap-2"):
             if ep.kinematic:
@@ -651,65 +607,81 @@ def _live_page(config: ViewerConfig) -> None:
              "python examples/live_patrol.py --out DIR.").classes("text-sm text-slate-500")
     holder = ui.column().classes("w-full gap-4")
     cards: dict[Path, dict[str, Any]] = {}
-    empty: dict[str, Any] = {"label": None}
+    state: dict[str, Any] = {"empty": None, "paths": [], "listed": 0.0}
 
-    def refresh() -> None:
-        paths = live_files(config.root)
-        if not paths and empty["label"] is None:
+    def show(records: list[tuple[Path, dict[str, Any] | None]]) -> None:
+        paths = [p for p, _ in records]
+        if not paths and state["empty"] is None:
             with holder:
-                empty["label"] = ui.label("No live file yet; this page updates by itself.") \
+                state["empty"] = ui.label("No live file yet; this page updates by itself.") \
                     .props("data-testid=no-live")
-        for path in paths:
-            record = read_live(path)
+        for path, record in records:
             if record is None:
                 continue
-            if empty["label"] is not None:
-                empty["label"].delete()
-                empty["label"] = None
+            if state["empty"] is not None:
+                state["empty"].delete()
+                state["empty"] = None
             card = cards.get(path)
             if card is None:
                 card = cards[path] = _live_card(holder, config, path)
-            card["update"](record)
+            card["update"](record)  # each card shows its own file's problem
         for gone in [p for p in cards if p not in paths]:
             cards.pop(gone)["card"].delete()
 
-    refresh()
-    ui.timer(LIVE_REFRESH_S, lambda: _safe("live", refresh))
+    def read() -> list[tuple[Path, dict[str, Any] | None]]:  # in a worker thread
+        if time.monotonic() - state["listed"] >= LIVE_LIST_S:  # a new file: once a second
+            state["paths"], state["listed"] = live_files(config.root), time.monotonic()
+        return [(p, read_live(p, config.root)) for p in state["paths"]]
+
+    async def refresh() -> None:
+        try:
+            records = await background.io_bound(read)
+        except Exception as exc:  # as _safe: one line in the page, never a traceback
+            records, failure = None, exc
+            _safe("live", lambda: _raise(failure))
+        if records is not None:
+            _safe("live", lambda: show(records))
+
+    ui.timer(LIVE_REFRESH_S, refresh)
 
 
 def _live_card(holder: Any, config: ViewerConfig, path: Path) -> dict[str, Any]:
     from skillcompose.fsafile import loads_fsa
 
-    with holder, ui.card().classes("w-full").props(f"data-testid=live-card data-file={path.name}") \
-            as card:
+    with holder, ui.card().classes("w-full") as card:
+        card.props["data-testid"] = "live-card"
+        card.props["data-file"] = path.name  # a value, never parsed as props
         title = ui.label(_rel(config, path)).classes("font-semibold")
         status = ui.label("").props("data-testid=live-status")
         active = ui.label("").classes("hidden").props("data-testid=live-active")
         with ui.row().classes("w-full no-wrap gap-6 items-start"):
-            graph = ui.mermaid("flowchart TD\n  wait[waiting]").classes("fsa-graph w-1/2") \
-                .props("data-testid=live-graph")
+            graph = ui.mermaid("flowchart TD\n  wait[waiting]", config=MERMAID) \
+                .classes("fsa-graph w-1/2").props("data-testid=live-graph")
             board = ui.table(columns=[{"name": c, "label": c, "field": c, "align": "left"}
                                       for c in ("key", "value")], rows=[], row_key="key") \
                 .classes("w-1/2").props("dense flat bordered")
     memo: dict[str, Any] = {"text": None, "fsa": None, "shown": None}
 
     def update(record: dict[str, Any]) -> None:
-        if record.get("fsa") != memo["text"]:
-            memo["text"] = record.get("fsa")
+        problem = live_problem(record)
+        if problem is not None:
+            status.text = f"{_rel(config, path)} cannot be shown: {problem}"
+            return
+        if record["fsa"] != memo["text"]:
+            memo["text"] = record["fsa"]
             try:
-                memo["fsa"] = loads_fsa(str(memo["text"]), str(path))
+                memo["fsa"] = loads_fsa(record["fsa"], str(path))
             except SkillcomposeError as exc:
                 memo["fsa"] = None
-                status.text = f"its FSA cannot be read: {exc}"
+                status.text = f"its FSA cannot be read: {_error_text(exc)}"
         fsa = memo["fsa"]
         if fsa is None:
             return
-        state, done, outcome = record.get("state"), record.get("done"), record.get("outcome")
-        steps = record.get("steps", 0)
-        title.text = f"{record.get('name', fsa.name)} ({_rel(config, path)}), process " \
-            f"{record.get('pid')}"
+        state, done, outcome = record.get("state"), record["done"], record.get("outcome")
+        steps, pid = record["steps"], record.get("pid")
+        title.text = f"{clip(record.get('name') or fsa.name, 200)} ({_rel(config, path)}), " \
+            f"process {pid}"
         skill = fsa.states[state].skill if state in fsa.states else "?"
-        pid = record.get("pid")
         gone = not done and isinstance(pid, int) and not pid_alive(pid)
         status.text = (f"ended: {outcome} after {steps} step(s)" if done else
                        f"stopped: process {pid} is gone; it was in {state} ({skill}) after "
@@ -721,23 +693,27 @@ def _live_card(holder: Any, config: ViewerConfig, path: Path) -> dict[str, Any]:
             memo["shown"] = shown
             graph.set_content(mermaid(fsa, active=None if done else state,
                                       ended=outcome if done else None))
-        bb = record.get("blackboard") or {}
-        board.rows = [{"key": k, "value": str(v)} for k, v in bb.items()]
+        board.rows = [{"key": clip(str(k), 200), "value": clip(str(v), 200)}
+                      for k, v in list((record.get("blackboard") or {}).items())[:500]]
 
-    return {"card": card, "update": update}
+    def guarded(record: dict[str, Any]) -> None:
+        try:
+            update(record)
+        except Exception as exc:  # this card's file only; the others go on
+            status.text = f"{_rel(config, path)} cannot be shown: " \
+                f"{type(exc).__name__}: {_error_text(exc, 300)}"
+
+    return {"card": card, "update": guarded}
 
 
 # ---------------------------------------------------------------------------------------
 def build(config: ViewerConfig) -> None:
-    """Register the pages (and the PR2's meshes as static files) for ``config``."""
-    @app.middleware("http")
-    async def not_in_frames(request: Request, call_next: Any) -> Any:
-        # no page of the viewer inside another site's page, where its controls could be
-        # clicked on that site's behalf
-        response = await call_next(request)
-        response.headers["X-Frame-Options"] = "DENY"
-        response.headers["Content-Security-Policy"] = "frame-ancestors 'none'"
-        return response
+    """Register the pages (and the PR2's meshes as static files) for ``config``, behind
+    :class:`.guard.Guard` (security headers and the Content-Security-Policy on every
+    response; the Host, Origin and fetch-metadata checks and, with a token, the token)."""
+    app.add_middleware(Guard, token=config.token, cookie=cookie_name(config.port),
+                       remote=config.remote)
+
     @ui.page("/", title="skillcompose view: runs")
     def runs_page() -> None:
         _safe("runs", lambda: _runs_page(config))

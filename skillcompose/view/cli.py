@@ -28,7 +28,9 @@ Start a local web app that shows runs, FSA files, replays and live FSAs:
           kinematic task
   Live    FSAs that publish their state as they run (skillcompose.view.live)
 
-It listens on 127.0.0.1 unless --host says otherwise; Ctrl-C stops it.
+It listens on 127.0.0.1 unless --host says otherwise; Ctrl-C stops it. Another address
+(beyond this machine) needs --allow-remote, and then every request needs the random access
+token printed in the address (as Jupyter's); --token asks for one on 127.0.0.1 too.
 """
 
 
@@ -57,8 +59,26 @@ def register_cli(subparsers: Any) -> None:
     p.add_argument("--port", type=whole(1, 65535), default=DEFAULT_PORT,
                    help=f"port to listen on (default {DEFAULT_PORT})")
     p.add_argument("--host", type=_host, default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1, this machine only)")
+                   help="address to listen on (default 127.0.0.1, this machine only; "
+                   "another needs --allow-remote)")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="allow a --host beyond this machine (such as 0.0.0.0): anyone who "
+                   "reaches it with the printed token sees what the viewer shows")
+    p.add_argument("--token", action="store_true",
+                   help="require a random access token (printed in the address) on "
+                   "127.0.0.1 too; always required beyond this machine")
     p.set_defaults(func=handle)
+
+
+def serving(host: str, allow_remote: bool, token: bool) -> tuple[bool, bool]:
+    """Whether the viewer listens beyond this machine, and whether it requires a token;
+    raises :class:`UsageError` for an address beyond it without ``--allow-remote``."""
+    remote = not ipaddress.ip_address(host).is_loopback
+    if remote and not allow_remote:
+        raise UsageError(f"--host {host}: an address beyond this machine lets others reach "
+                         "the viewer; add --allow-remote to serve it there (an access token "
+                         "is then required), or leave out --host to serve 127.0.0.1")
+    return remote, remote or token
 
 
 def _check_port(host: str, port: int) -> None:
@@ -84,17 +104,26 @@ def handle(args: argparse.Namespace) -> int:
     from skillcompose.task import parse_settings  # the runtime loads here, not for --help
 
     settings = parse_settings(args.settings)
+    remote, needs_token = serving(args.host, args.allow_remote, args.token)
     _check_port(args.host, args.port)
 
     from nicegui import ui  # the web libraries load here, not when the parser is built
 
     from .app import ViewerConfig, build
+    from .guard import new_token
 
+    token = new_token() if needs_token else None
     label = str(path.parent if file is not None else path)
     build(ViewerConfig(root=root, file=file.resolve() if file else None, task=args.task,
-                       settings=settings, label=label))
+                       settings=settings, label=label, token=token, remote=remote,
+                       port=args.port))
     url_host = f"[{args.host}]" if ":" in args.host else args.host
-    page = "/fsa" if file is not None else "/"
+    page = ("/fsa" if file is not None else "/") + (f"?token={token}" if token else "")
+    if remote:
+        print(f"skillcompose view: warning: serving on {args.host}, beyond this machine: "
+              "anyone who can reach this address and has the token below sees every run and "
+              "file the viewer shows; keep the token to yourself, and stop the viewer "
+              "(Ctrl-C) when done", file=sys.stderr, flush=True)
     print(f"skillcompose view: serving {label} on http://{url_host}:{args.port}{page} "
           "(Ctrl-C stops it)", flush=True)
     ui.run(host=args.host, port=args.port, reload=False, show=False,

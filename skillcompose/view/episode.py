@@ -66,12 +66,14 @@ def _shown(bb: Blackboard) -> dict[str, str]:
 
 def run_episode(path: Path, task_target: str, seed: int = 0,
                 settings: Mapping[str, Any] | None = None, *, backend: str | None = None,
-                robot: bool | None = None) -> Episode:
+                robot: bool | None = None, fsa: FSA | None = None) -> Episode:
     """Run the FSA file at ``path`` once on task ``task_target`` (on ``backend``, default
     the task's); ``robot`` (default: when
     the blackboard holds the kinematic skills' robot keys) adds the PR2 at each step.
+    ``fsa``: the file's FSA, read already (the viewer reads files only inside its folder);
+    then ``path`` only names it.
     Raises ``SkillcomposeError`` (one line) for a file, task or setting that is wrong."""
-    fsa = load_fsa(path)
+    fsa = load_fsa(path) if fsa is None else fsa
     task = load_task(task_target, **dict(settings or {}))
     if backend:
         check_backend(task.registry, backend)  # as `skillcompose run --backend` does

@@ -14,6 +14,7 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -62,7 +63,9 @@ class Viewer:
         return self.process.returncode, self.log.read_text(encoding="utf-8", errors="replace")
 
 
-def start_viewer(args: list[str], log: Path, cwd: Path) -> Viewer:
+def start_viewer(args: list[str], log: Path, cwd: Path, ready_status: int = 200) -> Viewer:
+    """``skillcompose view ARGS`` on a free 127.0.0.1 port, once it answers (with
+    ``ready_status``: 403 for a viewer that needs a token)."""
     port = free_port()
     out = log.open("w", encoding="utf-8")
     proc = subprocess.Popen(
@@ -75,8 +78,11 @@ def start_viewer(args: list[str], log: Path, cwd: Path) -> Viewer:
     while True:
         try:
             with urllib.request.urlopen(viewer.url + "/live", timeout=2) as r:
-                if r.status == 200:
+                if r.status == ready_status:
                     return viewer
+        except urllib.error.HTTPError as exc:
+            if exc.code == ready_status:
+                return viewer
         except OSError:
             pass
         if proc.poll() is not None or time.monotonic() > deadline:

@@ -37,8 +37,10 @@ def write_run(path: Path, info: Mapping[str, object], generations: int) -> None:
 def test_history_skips_a_line_being_written(tmp_path: Path) -> None:
     h = tmp_path / "history.jsonl"
     h.write_text('{"generation": 0, "best": 2}\n{"generation": 1, "best": 1}\n{"genera')
-    assert [r["generation"] for r in read_history(h)] == [0, 1]
-    assert read_history(tmp_path / "missing.jsonl") == []
+    history = read_history(h)
+    assert (history.generations, history.best, history.points) == (2, 1.0, ((0, 2.0), (1, 1.0)))
+    missing = read_history(tmp_path / "missing.jsonl")
+    assert (missing.generations, missing.points, missing.problem) == (0, (), "")
 
 
 def test_runs_and_their_status(tmp_path: Path) -> None:
@@ -199,7 +201,8 @@ def test_pipes_in_the_folder_viewed_never_hang_the_viewer(tmp_path: Path) -> Non
         summary = read_run(run, tmp_path)
         assert summary is not None and summary.status == "unreadable"
         assert summary.problem == "run.json cannot be read: it is a pipe, not a regular file"
-        assert read_history(run / "history.jsonl") == []
+        history = read_history(run / "history.jsonl")
+        assert history.generations == 0 and "a pipe" in history.problem
         view = read_fsa(run / "best.yaml")
         assert view.fsa is None
         assert [p.message for p in view.problems] == [
