@@ -19,6 +19,7 @@ listens on 127.0.0.1 only. Linux and macOS.
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import socket
 import struct
@@ -49,6 +50,37 @@ def _bound(conn: Connection | socket.socket, seconds: float) -> None:
             sock.detach()  # the fd stays the connection's
 
 
+@contextlib.contextmanager
+def _deadline(conn: Connection, seconds: float) -> Iterator[None]:
+    """The whole handshake within ``seconds``: past it the socket is shut down and the read
+    or write in progress fails. The bound of :func:`_bound` is per read, so a peer sending a
+    byte every few seconds could hold the handshake for as long as it liked."""
+    lock = threading.Lock()
+    done = False
+
+    def expire() -> None:
+        with lock:
+            if done:
+                return
+            sock = socket.socket(fileno=conn.fileno())
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            finally:
+                sock.detach()
+
+    timer = threading.Timer(seconds, expire)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        with lock:
+            done = True
+        timer.cancel()
+
+
 def _connection(sock: socket.socket, bound: float) -> Connection:
     """``sock`` (connected) as a blocking connection without Nagle's delay, its reads and
     writes bounded by ``bound`` seconds until :func:`_bound` lifts that."""
@@ -65,8 +97,9 @@ def connect(address: tuple[str, int], key: bytes) -> Connection:
     conn = _connection(socket.create_connection(address, timeout=HANDSHAKE_S),
                        3 * HANDSHAKE_S)
     try:
-        answer_challenge(conn, key)
-        deliver_challenge(conn, key)
+        with _deadline(conn, 3 * HANDSHAKE_S):
+            answer_challenge(conn, key)
+            deliver_challenge(conn, key)
         _bound(conn, 0)
     except BaseException:
         conn.close()
@@ -95,8 +128,9 @@ class JobServer:
                 sock, _ = self._server.accept()
                 conn = _connection(sock, HANDSHAKE_S)
                 try:
-                    deliver_challenge(conn, self._key)
-                    answer_challenge(conn, self._key)
+                    with _deadline(conn, HANDSHAKE_S):  # one deadline per connection
+                        deliver_challenge(conn, self._key)
+                        answer_challenge(conn, self._key)
                     _bound(conn, 0)
                     return conn
                 except Exception:  # not the evaluator (or it went away): the next

@@ -118,7 +118,13 @@ class RunDir:
         another process holds it."""
         if self._lock is not None:
             return
-        self.path.mkdir(parents=True, exist_ok=True)
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # under a file, on a read-only file system, not allowed
+            raise CheckpointError(
+                f"{self.path}: the run's folder cannot be made ({exc.strerror or exc}); give "
+                "a folder you can write in"
+            ) from None
         # never through a link (a directory from elsewhere could point .lock at a file of
         # yours, which writing the process id would destroy), never waiting on a pipe
         flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | \

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import os
 import socket
+import struct
 import threading
+import time
 from multiprocessing import AuthenticationError
 from multiprocessing.connection import Connection
 from typing import Any
@@ -79,6 +81,45 @@ def test_a_peer_that_stalls_in_the_challenge_is_dropped_and_keeps_nobody_out(
         stalled.recv(1 << 16)  # the challenge; never answered
         conn = connect(server.address, KEY)  # waits behind the stranger, and gets in
         assert stalled.recv(1) == b""  # dropped after the handshake's bound
+    conn.send(1)
+    assert conn.recv() == 2
+    conn.close()
+    thread.join(5)
+
+
+def test_a_peer_that_trickles_bytes_is_dropped_at_one_deadline_per_connection(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A byte every 0.2 s keeps each read within a 0.5 s per-read bound; the handshake as a
+    whole still ends at its deadline, and the driver behind the stranger gets in."""
+    monkeypatch.setattr(channel, "HANDSHAKE_S", 0.5)
+    server = JobServer("127.0.0.1", KEY)
+    seen: list[Any] = []
+    thread = _serve(server, seen)
+    with socket.create_connection(server.address) as trickling:
+        trickling.settimeout(5)
+        trickling.recv(1 << 16)  # the challenge
+        trickling.sendall(struct.pack("!i", 200))  # an answer of 200 bytes is coming...
+        started = time.monotonic()
+        dropped = False
+        for _ in range(40):  # up to 8 s of trickling, far past the deadline
+            try:
+                trickling.sendall(b"\x00")
+            except OSError:
+                dropped = True
+                break
+            time.sleep(0.2)
+            trickling.setblocking(False)
+            try:
+                if trickling.recv(1) == b"":
+                    dropped = True
+                    break
+            except BlockingIOError:
+                pass
+            finally:
+                trickling.setblocking(True)
+        assert dropped and time.monotonic() - started < 3.0
+    conn = connect(server.address, KEY)
     conn.send(1)
     assert conn.recv() == 2
     conn.close()

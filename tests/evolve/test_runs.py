@@ -575,3 +575,13 @@ def test_ctrl_c_on_the_process_group_gives_one_line(tmp_path: Path) -> None:
     assert proc.returncode == 130
     assert "ForkProcess" not in err and "Traceback" not in err, err
     assert err.strip().splitlines()[-1].startswith("interrupted; continue the run with: ")
+
+
+def test_an_out_dir_that_cannot_be_made_is_one_error_before_any_work(tmp_path: Path) -> None:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x", encoding="utf-8")
+    generations: list[object] = []
+    with pytest.raises(CheckpointError, match=r"the run's folder cannot be made \(Not a "
+                                              r"directory\); give a folder you can write in"):
+        evolve(_task(), CFG, seed=1, out_dir=a_file / "run", on_generation=generations.append)
+    assert generations == []  # refused before a generation was evaluated
