@@ -158,7 +158,9 @@ class Task:
       FSA file's ``terminals:``; the fitness sees which one ended it.
     - ``terminal_skills``: the skills whose outcomes end a run, as the paper's CheckSuccess
       (4.1, 4.3) and Push (4.2) do. Evolution then routes each outcome of those skills that
-      names a terminal to that terminal, and every other edge to a state, as in the paper.
+      names a terminal to that terminal, and every other edge to a state, as in the paper:
+      a terminating skill's ``failure`` ends the run and is never retried, so a skill that
+      fails at random should not be one.
       ``None`` (default) lets any outcome of any state end the run.
     - ``deterministic``: the world and the skills draw nothing at random, so every episode
       of an FSA is the same: evolution then runs one trial per evaluation and one per
