@@ -60,14 +60,20 @@ class RunSummary:
     settings: str  # task settings and the main evolution settings, readable
     seed: int | None
     status: str  # running, finished, interrupted, unreadable
-    generations: int
-    best: float | None
+    generations: int  # records in history.jsonl (the last generation's index + 1, usually)
+    best: float | None  # the run's result's best fitness; without a result, generation_best
     success: float | None  # share of fresh episodes that succeeded, at the end
     problem: str = ""  # why a file of the run could not be read
     task_settings: str = ""  # the task's settings alone, as name=value, ...
     success_text: str = "–"  # the fresh rate, its bounds and whether it holds, readable
     points: tuple[tuple[int, float], ...] = ()  # the chart's (generation, best)
     reading: bool = False  # the history is still being read (a large one)
+    # the index of the last generation evaluated (0: the initial population), the N of
+    # `skillcompose evolve`'s "after N generations": run.json's result.generations, else the
+    # last history record's generation; None: none evaluated yet
+    last_generation: int | None = None
+    generation_best: float | None = None  # the last generation's best evaluation (the chart's)
+    best_is_result: bool = False  # best is run.json's result.best_fitness
 
 
 def pid_alive(pid: int) -> bool:
@@ -178,8 +184,9 @@ def run_info_problem(info: Mapping[str, Any]) -> str:
         return f"run.json: seed is outside 0..{MAX_SEED}"
     result = info.get("result") or {}
     for key, types in (("best_fitness", (int, float, type(None))),
-                       ("fresh", (dict, type(None)))):
-        if key in result and not isinstance(result[key], types):
+                       ("fresh", (dict, type(None))), ("generations", (int, type(None)))):
+        if key in result and (not isinstance(result[key], types) or (
+                isinstance(result[key], bool) and key == "generations")):
             return f"run.json: result.{key} is {_kind(result[key])}, not {_expected(types)}"
     return ""
 
@@ -248,7 +255,8 @@ def _kept(info: dict[str, Any]) -> dict[str, Any]:
     result = info.get("result")
     if isinstance(result, dict):
         fresh = result.get("fresh")
-        kept["result"] = {"best_fitness": result.get("best_fitness")} | (
+        kept["result"] = {"best_fitness": result.get("best_fitness"),
+                          "generations": result.get("generations")} | (
             {"fresh": {k: fresh[k] for k in ("success_rate", "lower", "upper", "holds")
                        if k in fresh and isinstance(fresh[k], _SCALAR)}}
             if isinstance(fresh, dict) else {})
@@ -284,8 +292,12 @@ def read_run(run_dir: Path, root: Path, budget: Budget | None = None,
     if history.problem and not problem:
         problem = history.problem
     best = number(result.get("best_fitness")) if result else None
+    best_is_result = best is not None
     if best is None:
         best = history.best
+    last = result.get("generations") if result else None
+    if not isinstance(last, int) or isinstance(last, bool):
+        last = history.last_generation
     success = None
     success_text = "–"
     if result and isinstance(result.get("fresh"), dict):
@@ -301,7 +313,8 @@ def read_run(run_dir: Path, root: Path, budget: Budget | None = None,
                                 dict(info.get("task_settings") or {}).items()),
         generations=history.generations, best=best, success=success,
         problem=clip(problem, MAX_TEXT), success_text=success_text, points=history.points,
-        reading=not history.complete,
+        reading=not history.complete, last_generation=last, generation_best=history.best,
+        best_is_result=best_is_result,
     )
 
 
@@ -400,7 +413,7 @@ class FSAView:
     rows: tuple[StateRow, ...] = ()
     unreachable: tuple[str, ...] = ()
     traps: tuple[str, ...] = ()
-    checked_against: str = ""  # what the FSA was validated against
+    checked_against: str = ""  # the skills it was checked against ("": its structure only)
     error_lines: tuple[int, ...] = field(default=())
 
 
@@ -443,13 +456,13 @@ def read_fsa(path: Path, registry: Registry | None = None, what: str = "",
         fsa = loads_fsa(text, str(path))  # the reader's checks: size, YAML, keys, values
     except FSAValidationError as exc:
         return _with_problems(path, text, None, exc.problems)
-    checked = "structure only (give --task to check skills and parameters)"
+    checked = ""  # the structure only: the skills and their parameters are not known
     if registry is not None:
         try:
             fsa.validate(registry)
         except FSAValidationError as exc:
             return _with_problems(path, text, fsa, exc.problems)
-        checked = f"checked against {what or 'the task'}'s {len(registry)} skills"
+        checked = f"{what or 'the task'}'s {len(registry)} skills"
     unreachable = tuple(fsa.unreachable())
     traps = tuple(trap_states(fsa))
     return FSAView(path, text, fsa, (), _rows(fsa, registry, unreachable, traps),

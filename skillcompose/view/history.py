@@ -5,12 +5,12 @@ history every second. :class:`HistoryReader` keeps, per file, where its last rea
 and reads on from there only when the file changed (its inode, size or modification time),
 at most :data:`MAX_HISTORY_READ` new bytes per read (a 100 MB history is read over several
 refreshes, each a bounded piece of work, in the refresh's worker thread), and keeps a bounded
-summary instead of the records: the generation count, the last best fitness, and at most
-:data:`MAX_POINTS` (generation, best) points for the chart, thinned evenly as the file grows
-(the last point always kept). A file replaced or rewritten (another inode, shorter, or its
-bytes before the position changed) is read again from its start. A line longer than
-:data:`MAX_LINE_BYTES` is skipped as damaged; a line still being written is read once it is
-whole.
+summary instead of the records: the record count, the last record's generation and best
+fitness, and at most :data:`MAX_POINTS` (generation, best) points for the chart, thinned
+evenly as the file grows (the last point always kept). A file replaced or rewritten
+(another inode, shorter, or its bytes before the position changed) is read again from its
+start. A line longer than :data:`MAX_LINE_BYTES` is skipped as damaged; a line still being
+written is read once it is whole.
 
 Written here: no library reads a growing JSON Lines file on from an offset (the standard
 library's ``json`` parses each line; ``os.pread`` reads from the offset), and the least
@@ -90,11 +90,12 @@ class History:
     the last one's best fitness, and (generation, best) points for the chart (all of them up
     to :data:`MAX_POINTS`, else evenly thinned, the last one always kept)."""
 
-    generations: int = 0
+    generations: int = 0  # complete records read (lines, not the last one's index)
     best: float | None = None
     points: tuple[tuple[int, float], ...] = ()
     complete: bool = True  # False: part of the file is still to be read
     problem: str = ""  # why the file cannot be read ("" when it can, or is missing)
+    last_generation: int | None = None  # the last record's ``generation`` (0: the first)
 
 
 class Budget:
@@ -114,6 +115,7 @@ class _HistoryState:
         self.seen: tuple[int, int, int, int] | None = None  # the stat read up to its end
         self.skipping = False  # inside a line longer than MAX_LINE_BYTES
         self.generations = 0
+        self.last_generation: int | None = None
         self.best: float | None = None
         self.points: list[tuple[int, float]] = []
         self.candidates = 0  # points offered so far (kept: every stride-th)
@@ -135,6 +137,7 @@ class _HistoryState:
         if not isinstance(gen, int) or isinstance(gen, bool) or abs(gen) > MAX_WHOLE:
             return
         self.generations += 1
+        self.last_generation = gen
         best = number(rec.get("best"))
         self.best = best
         if best is None:
@@ -152,7 +155,8 @@ class _HistoryState:
         points = tuple(self.points)
         if self.last is not None and (not points or points[-1] != self.last):
             points += (self.last,)
-        return History(self.generations, self.best, points, complete)
+        return History(self.generations, self.best, points, complete,
+                       last_generation=self.last_generation)
 
 
 class HistoryReader:

@@ -32,8 +32,9 @@ pytestmark = [pytest.mark.slow, pytest.mark.browser]
 
 
 def runs_table(page: Page) -> dict[str, list[str]]:
-    """The runs table's rows by run name: name, task, status, generations, best, fresh
-    success, seed, settings (read in one go, so a refresh cannot tear it)."""
+    """The runs table's rows by run name: name, task, status, generations (the last one's
+    index), best (and its note, on a line of its own), fresh success, seed, settings (read in
+    one go, so a refresh cannot tear it)."""
     rows = page.page.evaluate("""() => [...document.querySelectorAll(
             '[data-testid=runs-table] tbody tr')].map(tr => {
         const tds = [...tr.querySelectorAll('td')];
@@ -75,19 +76,20 @@ def test_runs_table_lists_runs_and_chart_grows(viewer: Viewer, runs_dir: Path,
     toy_info = json.loads((runs_dir / "toy" / "run.json").read_text())
     assert table["toy"][1] == "toy_fetch"
     assert table["toy"][2] == "finished"
-    assert table["toy"][3] == str(len(toy_history))
-    assert table["toy"][4] == f"{toy_info['result']['best_fitness']:.4g}"
+    assert table["toy"][3] == str(toy_info["result"]["generations"]) == str(
+        len(toy_history) - 1)  # the last generation's index, as evolve says it
+    assert table["toy"][4].split("\n")[0] == f"{toy_info['result']['best_fitness']:.4g}"
     assert table["toy"][5] == fresh_text(toy_info["result"]["fresh"])  # rate, bounds, verdict
     assert "(" in table["toy"][5] and "hold" in table["toy"][5]
     assert table["grow"][2] == "running"  # its lock names this (live) process
-    assert table["grow"][3] == "3"
+    assert table["grow"][3] == "2"  # generations 0, 1 and 2
     assert "p_fail=0.1" in table["grow"][7]
     points = wait_for(lambda: chart_points(page) or None, what="the chart")
     assert points == {"toy": len(toy_history), "grow": 3}
 
     append_generation(runs_dir / "grow", 3)  # the evolution writes a generation
     wait_for(lambda: chart_points(page).get("grow") == 4, what="the chart to grow")
-    wait_for(lambda: runs_table(page)["grow"][3] == "4", what="the table to follow")
+    wait_for(lambda: runs_table(page)["grow"][3] == "3", what="the table to follow")
     with (runs_dir / "grow" / "history.jsonl").open("a") as f:
         f.write('{"generation": 4, "be')  # a line being written: not a point yet
     page.page.wait_for_timeout(2500)
