@@ -91,7 +91,12 @@ from skillcompose import Blackboard, Registry
 from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box
 from skillcompose.skills import kinematic as skills_kinematic
 from skillcompose.skills import move_to_push as skills_push
-from skillcompose.skills.move_to_push import base_hits_table, base_in_room, object_in_robot_frame
+from skillcompose.skills.move_to_push import (
+    base_hits_table,
+    base_in_room,
+    base_table_distance,
+    object_in_robot_frame,
+)
 from skillcompose.skills.network import TOPOLOGIES, Topology
 from skillcompose.task import Task, TaskError
 
@@ -137,28 +142,6 @@ def _footprint_gap(pose: tuple[float, float, float], table: Box) -> float:
     dx = max(abs(pose[0] - tx) - hx, 0.0)
     dy = max(abs(pose[1] - ty) - hy, 0.0)
     return math.hypot(dx, dy) - BASE_HALF_EXTENTS_M[0]
-
-
-def _footprint_distance(pose: tuple[float, float, float], table: Box) -> float:
-    """Distance [m] between the base footprint at ``pose`` (a square turned by its yaw) and
-    the axis-aligned table's footprint, exact when they do not overlap: two disjoint convex
-    polygons are nearest at a corner of one of them."""
-    x, y, yaw = pose
-    c, s = math.cos(yaw), math.sin(yaw)
-    bx, by = BASE_HALF_EXTENTS_M
-    tx, ty = table.center_m[0], table.center_m[1]
-    hx, hy = table.half_extents_m[0], table.half_extents_m[1]
-
-    def to_rect(px: float, py: float, ex: float, ey: float) -> float:
-        return math.hypot(max(abs(px) - ex, 0.0), max(abs(py) - ey, 0.0))
-
-    corners = [(a, b) for a in (-1.0, 1.0) for b in (-1.0, 1.0)]
-    base = min(to_rect(x + c * a * bx - s * b * by - tx, y + s * a * bx + c * b * by - ty,
-                       hx, hy) for a, b in corners)
-    top = min(to_rect(c * (tx + a * hx - x) + s * (ty + b * hy - y),
-                      -s * (tx + a * hx - x) + c * (ty + b * hy - y), bx, by)
-              for a, b in corners)
-    return min(base, top)
 
 
 def _table(rng: np.random.Generator) -> tuple[Box, float, float, float, float, float]:
@@ -213,7 +196,7 @@ def _paper_world(rng: np.random.Generator) -> dict[str, Any] | None:
         pose = (x, y, float(rng.uniform(-math.pi, math.pi)))
         if not base_in_room(pose, ROOM_HALF_M) or base_hits_table(pose, table):
             continue
-        if _footprint_distance(pose, table) <= START_DISTANCE_M:
+        if base_table_distance(pose, table) <= START_DISTANCE_M:
             break
     else:  # pragma: no cover - the table is always small beside the room
         return None

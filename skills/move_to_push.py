@@ -58,6 +58,7 @@ __all__ = [
     "base_goal",
     "base_hits_table",
     "base_in_room",
+    "base_table_distance",
     "make_skills",
     "network_inputs",
     "object_in_robot_frame",
@@ -114,6 +115,28 @@ def base_goal(
     torso = min(max(float(outputs[3]), 0.0), 1.0) * TORSO_RANGE_M[1]
     arm: Literal["left", "right"] = "left" if outputs[4] >= 0.5 else "right"
     return (x + c * dx - s * dy, y + s * dx + c * dy, new_yaw), torso, arm
+
+
+def base_table_distance(pose: tuple[float, float, float], table: Box) -> float:
+    """Distance [m] between the base footprint at ``pose`` (a square turned by its yaw) and
+    the axis-aligned table's footprint, exact when they do not overlap: two disjoint convex
+    polygons are nearest at a corner of one of them."""
+    x, y, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    bx, by = BASE_HALF_EXTENTS_M
+    tx, ty = table.center_m[0], table.center_m[1]
+    hx, hy = table.half_extents_m[0], table.half_extents_m[1]
+
+    def to_rect(px: float, py: float, ex: float, ey: float) -> float:
+        return math.hypot(max(abs(px) - ex, 0.0), max(abs(py) - ey, 0.0))
+
+    corners = [(a, b) for a in (-1.0, 1.0) for b in (-1.0, 1.0)]
+    base = min(to_rect(x + c * a * bx - s * b * by - tx, y + s * a * bx + c * b * by - ty,
+                       hx, hy) for a, b in corners)
+    top = min(to_rect(c * (tx + a * hx - x) + s * (ty + b * hy - y),
+                      -s * (tx + a * hx - x) + c * (ty + b * hy - y), bx, by)
+              for a, b in corners)
+    return min(base, top)
 
 
 def base_hits_table(
