@@ -231,3 +231,16 @@ def test_the_runs_table_gives_the_fresh_rate_with_its_bounds_and_verdict() -> No
                        "holds": False}) == "7.5% (4.7–11.3) does not hold"
     assert fresh_text({"success_rate": 0.5}) == "50.0%"  # a run from before the bounds
     assert fresh_text({"success_rate": "x"}) == "–"
+
+
+def test_the_live_patrol_runs_by_its_path_from_any_folder(tmp_path: Path) -> None:
+    """`python -m examples.live_patrol` worked only from the repository root; the docs give
+    the path form, which must work from anywhere."""
+    import subprocess
+    import sys
+
+    script = Path(__file__).resolve().parents[3] / "examples" / "live_patrol.py"
+    done = subprocess.run([sys.executable, str(script), "--help"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "usage: python examples/live_patrol.py" in done.stdout
