@@ -574,3 +574,21 @@ def test_a_run_whose_task_sometimes_kills_its_worker_finishes_without_the_end_in
     lost = sum(json.loads(line)["faults"]["lost"]
                for line in (d / "history.jsonl").read_text().splitlines())
     assert lost > 0
+
+
+@pytest.mark.parametrize(("solved", "warned"), [(True, True), (False, False)])
+def test_the_fresh_episode_warning_comes_only_for_a_run_called_solved(
+        solved: bool, warned: bool, capsys: pytest.CaptureFixture[str]) -> None:
+    """An unsolved run's FSA not holding is no news: the warning is for a run whose 'solved'
+    the fresh episodes contradict (the paper preset in --json mode)."""
+    from types import SimpleNamespace
+
+    from skillcompose.evolve import EvolutionConfig
+    from skillcompose.evolve.cli import _warn
+    from skillcompose.evolve.evaluation import Faults
+
+    result = SimpleNamespace(unchanged=False, solved=solved, fresh={"holds": False},
+                             faults=Faults(), nothing_succeeded=False)
+    _warn(result, EvolutionConfig(), load_task("examples.pour_water"))  # type: ignore[arg-type]
+    err = capsys.readouterr().err
+    assert ("does not hold on fresh ones" in err) is warned
