@@ -94,8 +94,8 @@ from skillcompose.skills import move_to_push as skills_push
 from skillcompose.skills.move_to_push import (
     base_hits_table,
     base_in_room,
-    base_table_distance,
     object_in_robot_frame,
+    start_pose_near,
 )
 from skillcompose.skills.network import TOPOLOGIES, Topology
 from skillcompose.task import Task, TaskError
@@ -191,14 +191,8 @@ def _facing_world(rng: np.random.Generator) -> dict[str, Any] | None:
 def _paper_world(rng: np.random.Generator) -> dict[str, Any] | None:
     """One draw of the ``paper`` world (module docstring), None when it must be redrawn."""
     table, cx, cy, w, length, height = _table(rng)
-    for _ in range(1000):
-        x, y = (float(v) for v in rng.uniform(-ROOM_HALF_M, ROOM_HALF_M, size=2))
-        pose = (x, y, float(rng.uniform(-math.pi, math.pi)))
-        if not base_in_room(pose, ROOM_HALF_M) or base_hits_table(pose, table):
-            continue
-        if base_table_distance(pose, table) <= START_DISTANCE_M:
-            break
-    else:  # pragma: no cover - the table is always small beside the room
+    pose = start_pose_near(rng, table, ROOM_HALF_M, START_DISTANCE_M)
+    if pose is None:  # pragma: no cover - the table is always small beside the room
         return None
     ax, ay = w / 2 - PAPER_OBJECT_MARGIN_M, length / 2 - PAPER_OBJECT_MARGIN_M
     ox, oy = float(rng.uniform(cx - ax, cx + ax)), float(rng.uniform(cy - ay, cy + ay))

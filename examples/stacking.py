@@ -126,8 +126,8 @@ from skillcompose.skills import stacking as skills_stacking
 from skillcompose.skills.move_to_push import (
     base_hits_table,
     base_in_room,
-    base_table_distance,
     classifier_label,
+    start_pose_near,
 )
 from skillcompose.skills.network import TOPOLOGIES, Topology
 from skillcompose.skills.stacking import stacked
@@ -304,14 +304,8 @@ def _paper_world(rng: np.random.Generator) -> dict[str, Any]:
         table = _table(rng)
         cx, cy, top = table.center_m[0], table.center_m[1], table.top_z_m
         hx, hy = table.half_extents_m[0], table.half_extents_m[1]
-        for _ in range(1000):
-            x, y = (float(v) for v in rng.uniform(-ROOM_HALF_M, ROOM_HALF_M, size=2))
-            pose = (x, y, float(rng.uniform(-math.pi, math.pi)))
-            if not base_in_room(pose, ROOM_HALF_M) or base_hits_table(pose, table):
-                continue
-            if base_table_distance(pose, table) <= START_DISTANCE_M:
-                break
-        else:  # pragma: no cover - the table is always small beside the room
+        pose = start_pose_near(rng, table, ROOM_HALF_M, START_DISTANCE_M)
+        if pose is None:  # pragma: no cover - the table is always small beside the room
             continue
         ax, ay = hx - PAPER_OBJECT_MARGIN_M, hy - PAPER_OBJECT_MARGIN_M
         z = float(top) + OBJECT_HALF_EXTENTS_M[2]

@@ -64,6 +64,7 @@ __all__ = [
     "object_in_robot_frame",
     "recognise_object",
     "register",
+    "start_pose_near",
     "weights_parameter",
 ]
 
@@ -137,6 +138,22 @@ def base_table_distance(pose: tuple[float, float, float], table: Box) -> float:
                       -s * (tx + a * hx - x) + c * (ty + b * hy - y), bx, by)
               for a, b in corners)
     return min(base, top)
+
+
+def start_pose_near(rng: np.random.Generator, table: Box, room_half_m: float,
+                    within_m: float, tries: int = 1000) -> tuple[float, float, float] | None:
+    """A base pose drawn uniformly over the room with any heading, whose footprint is wholly
+    in the room, clear of ``table`` and at most ``within_m`` from its footprint (the paper's
+    "a robot which starts within 2m of the table", §4.2 and §4.3); None after ``tries``
+    draws."""
+    for _ in range(tries):
+        x, y = (float(v) for v in rng.uniform(-room_half_m, room_half_m, size=2))
+        pose = (x, y, float(rng.uniform(-math.pi, math.pi)))
+        if not base_in_room(pose, room_half_m) or base_hits_table(pose, table):
+            continue
+        if base_table_distance(pose, table) <= within_m:
+            return pose
+    return None
 
 
 def base_hits_table(
