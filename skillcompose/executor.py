@@ -43,7 +43,7 @@ from .fsa import ERROR, FSA, PREEMPTED, TIMEOUT
 from .params import time_limit_problem
 
 if TYPE_CHECKING:
-    from .registry import Registry
+    from .lookup import SkillLookup
     from .skill import Skill
 
 __all__ = [
@@ -600,7 +600,7 @@ class FSARun:
         )
 
 
-def compile_fsa(fsa: FSA, registry: Registry, backend: str | None = None) -> CompiledFSA:
+def compile_fsa(fsa: FSA, registry: SkillLookup, backend: str | None = None) -> CompiledFSA:
     """Validate ``fsa`` against ``registry`` and bind it to ``backend``'s implementations.
 
     Raises :class:`~skillcompose.errors.FSAValidationError` listing every problem.
@@ -622,7 +622,7 @@ def compile_fsa(fsa: FSA, registry: Registry, backend: str | None = None) -> Com
 
 def run_fsa(
     fsa: FSA | CompiledFSA,
-    registry: Registry | None = None,
+    registry: SkillLookup | None = None,
     bb: Blackboard | None = None,
     rng: np.random.Generator | int | None = None,
     *,

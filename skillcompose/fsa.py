@@ -7,8 +7,8 @@ default). A run that takes more than ``step_limit`` transitions ends with ``time
 
 Structure is checked when an :class:`FSA` is built (the start exists, every target exists);
 what depends on the skills (every outcome routed, parameters in range) is checked against a
-:class:`~skillcompose.registry.Registry` by :meth:`FSA.check` / :meth:`FSA.validate`, which
-compiling and loading do for you.
+:class:`~skillcompose.lookup.SkillLookup` (a registry) by :meth:`FSA.check` /
+:meth:`FSA.validate`, which compiling and loading do for you.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from .errors import FSAValidationError, Problem, UnknownSkillError, clip, contro
 from .params import param_problems, time_limit_problem
 
 if TYPE_CHECKING:
-    from .registry import Registry
+    from .lookup import SkillLookup
 
 __all__ = [
     "DEFAULT_STEP_LIMIT",
@@ -222,7 +222,7 @@ class FSA:
                     ))
         return out
 
-    def check(self, registry: Registry) -> list[Problem]:
+    def check(self, registry: SkillLookup) -> list[Problem]:
         """Problems of this FSA against the skills of ``registry`` (empty when valid)."""
         out: list[Problem] = []
         for sname, st in self.states.items():
@@ -256,7 +256,7 @@ class FSA:
             out.extend(self._at(p, *base, "params", p.key or "") for p in problems)
         return out
 
-    def validate(self, registry: Registry) -> FSA:
+    def validate(self, registry: SkillLookup) -> FSA:
         """Raise :class:`FSAValidationError` listing every problem; return ``self`` if none."""
         problems = self.check(registry)
         if problems:
@@ -360,7 +360,7 @@ class FSA:
     # -- construction helpers --------------------------------------------------------------
     @classmethod
     def chain(
-        cls, skills: Iterable[str], *, registry: Registry | None = None,
+        cls, skills: Iterable[str], *, registry: SkillLookup | None = None,
         on_other: str = "failure", step_limit: int = DEFAULT_STEP_LIMIT,
         name: str = "",
     ) -> FSA:

@@ -74,7 +74,7 @@ from .fsa import DEFAULT_STEP_LIMIT, DEFAULT_TERMINALS, FSA, Source, State, step
 from .params import time_limit_problem
 
 if TYPE_CHECKING:
-    from .registry import Registry
+    from .lookup import SkillLookup
 
 __all__ = [
     "FORMAT_VERSION",
@@ -726,7 +726,7 @@ def _node_kind(node: Node) -> str:
 # ---------------------------------------------------------------------------------------
 # writing
 # ---------------------------------------------------------------------------------------
-def dumps_fsa(fsa: FSA, registry: Registry | None = None, *, header: str | None = None) -> str:
+def dumps_fsa(fsa: FSA, registry: SkillLookup | None = None, *, header: str | None = None) -> str:
     """The FSA as file text. A loaded FSA keeps its file's comments and layout.
 
     With a ``registry``, parameters of new states carry their unit and range as comments.
@@ -891,7 +891,7 @@ def _yaml_fix(what: str, text: str, mark: Any) -> str:
 
 
 def save_fsa(
-    fsa: FSA, path: str | os.PathLike[str], registry: Registry | None = None,
+    fsa: FSA, path: str | os.PathLike[str], registry: SkillLookup | None = None,
     *, header: str | None = None,
 ) -> FSA:
     """Write ``fsa`` to ``path`` atomically, keeping the mode of the file it replaces (a new
@@ -919,7 +919,7 @@ def _py(value: Any) -> Any:
     return value
 
 
-def _state_map(st: State, registry: Registry | None) -> CommentedMap:
+def _state_map(st: State, registry: SkillLookup | None) -> CommentedMap:
     """A new state's mapping, its parameters' units and ranges and its time limit's unit as
     comments."""
     m = CommentedMap()
@@ -934,7 +934,7 @@ def _state_map(st: State, registry: Registry | None) -> CommentedMap:
     return m
 
 
-def _new_document(fsa: FSA, registry: Registry | None, header: str | None) -> CommentedMap:
+def _new_document(fsa: FSA, registry: SkillLookup | None, header: str | None) -> CommentedMap:
     # the keys a new file always has, in order, for the sync to fill; meta as plain data
     doc = CommentedMap((k, None) for k in TOP_LEVEL_KEYS[:5] if k != "name" or fsa.name)
     if fsa.meta:
@@ -1005,7 +1005,7 @@ def _sync_map(m: CommentedMap, values: Mapping[str, Any]) -> None:
 
 
 def _sync_document(
-    doc: CommentedMap, fsa: FSA, registry: Registry | None, renames: Mapping[str, str]
+    doc: CommentedMap, fsa: FSA, registry: SkillLookup | None, renames: Mapping[str, str]
 ) -> None:
     _set(doc, "format", FORMAT_VERSION)
     if fsa.name or "name" in doc:

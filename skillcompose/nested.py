@@ -20,7 +20,7 @@ from .fsa import FSA, TIMEOUT
 from .skill import Skill, SkillFn, SkillSpec
 
 if TYPE_CHECKING:
-    from .registry import Registry
+    from .lookup import SkillLookup
 
 __all__ = ["MAX_NESTING", "FSASkill", "fsa_skill"]
 
@@ -37,7 +37,7 @@ class FSASkill(Skill):
     long_running = True
 
     def __init__(
-        self, spec: SkillSpec, fsa: FSA, registry: Registry, timeout_outcome: str,
+        self, spec: SkillSpec, fsa: FSA, registry: SkillLookup, timeout_outcome: str,
         depth: int = 1,
     ) -> None:
         super().__init__(spec, None, backend="default")
@@ -101,7 +101,7 @@ class _NestedActivation:
 
 def fsa_skill(
     fsa: FSA,
-    registry: Registry,
+    registry: SkillLookup,
     *,
     name: str | None = None,
     on_timeout: str | None = None,

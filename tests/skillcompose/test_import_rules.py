@@ -137,3 +137,24 @@ def test_no_part_has_an_import_circle(part: str) -> None:
                 graph.add_edge(module, target)
     cycles = list(nx.simple_cycles(graph))
     assert not cycles, f"import circles in {part}: {cycles}"
+
+
+LOOKUP_ONLY = ("skillcompose.fsa", "skillcompose.executor", "skillcompose.nested",
+               "skillcompose.fsafile")
+"""The model, the engine and the file layer: they look skills up (``skillcompose.lookup``)
+and do not know the loader, not even for typing."""
+
+
+@pytest.mark.parametrize("module", LOOKUP_ONLY)
+def test_model_engine_and_files_do_not_know_the_loader(module: str) -> None:
+    found = _imported(module, _MODULES[module])
+    assert "skillcompose.registry" not in found, (
+        f"{module} imports skillcompose.registry: ask skillcompose.lookup.SkillLookup instead")
+
+
+def test_a_registry_is_a_skill_lookup() -> None:
+    from skillcompose.lookup import SkillLookup
+    from skillcompose.registry import Registry
+
+    assert isinstance(Registry(), SkillLookup)
+    assert not isinstance(object(), SkillLookup)
