@@ -41,6 +41,7 @@ from skillcompose.robots.model import (
     TUCKED_ARM_RAD,
     Arm,
     FloatArray,
+    RobotPose,
 )
 from skillcompose.robots.physics_model import (
     BASE_JOINTS,
@@ -56,6 +57,7 @@ __all__ = [
     "Motion",
     "PhysicsWorld",
     "PoseRecorder",
+    "robot_pose_at",
 ]
 
 Pose6 = tuple[float, float, float, float, float, float]
@@ -98,6 +100,9 @@ class PoseRecorder:
             and both tool frames.
         times_s: time of each sample [s].
         positions / quaternions: per sample, one row per body (x, y, z [m]; w, x, y, z).
+        robot: per sample, the robot's configuration (:class:`RobotPose`: base, torso, arms),
+            from which a replay draws the PR2 itself.
+        objects: the scene's objects in the order of the first rows of ``positions``.
     """
 
     every_s: float = 0.05
@@ -105,7 +110,10 @@ class PoseRecorder:
     times_s: list[float] = field(default_factory=list)
     positions: list[FloatArray] = field(default_factory=list)
     quaternions: list[FloatArray] = field(default_factory=list)
+    robot: list[RobotPose] = field(default_factory=list)
+    objects: tuple[str, ...] = ()
     _ids: NDArray[np.intp] | None = field(default=None, repr=False)
+    _physics: PhysicsModel | None = field(default=None, repr=False)
     _next_s: float = field(default=0.0, repr=False)
 
     def _bind(self, physics: PhysicsModel) -> None:
@@ -118,9 +126,12 @@ class PoseRecorder:
         if missing:
             raise InvalidConfiguration(f"recorder: no bodies {missing} in the model")
         self._ids = np.array(ids, dtype=np.intp)
+        self._physics = physics
+        self.objects = tuple(physics.object_body)
         self.times_s.clear()
         self.positions.clear()
         self.quaternions.clear()
+        self.robot.clear()
         self._next_s = 0.0
 
     def _sample(self, data: mujoco.MjData) -> None:
@@ -129,7 +140,17 @@ class PoseRecorder:
         self.times_s.append(float(data.time))
         self.positions.append(np.array(data.xpos[self._ids]))
         self.quaternions.append(np.array(data.xquat[self._ids]))
+        if self._physics is not None:
+            self.robot.append(robot_pose_at(self._physics, data.qpos))
         self._next_s = data.time + self.every_s
+
+
+def robot_pose_at(physics: PhysicsModel, qpos: FloatArray) -> RobotPose:
+    """The PR2's configuration in ``qpos`` of a model of ``physics`` (base yaw wrapped)."""
+    index = physics.qpos
+    x, y, yaw = (float(qpos[index[n]]) for n in BASE_JOINTS)
+    arms = {arm: tuple(float(qpos[index[n]]) for n in ARM_JOINTS[arm]) for arm in ARMS}
+    return RobotPose((x, y, _wrap(yaw)), float(qpos[index[TORSO_JOINT]]), arms)
 
 
 class PhysicsWorld:

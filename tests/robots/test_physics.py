@@ -260,3 +260,14 @@ def test_bad_inputs_are_refused() -> None:
         world.reset(torso_m=0.5)
     with pytest.raises(InvalidConfiguration, match="7 finite"):
         world.track_arm("left", (0.0,) * 6, 1.0)
+
+
+def test_the_recording_holds_the_robot_as_it_moved(solve: Solve) -> None:
+    _, recorder = _grasp_and_lift_record(solve)
+    assert len(recorder.robot) == len(recorder.times_s)
+    assert recorder.objects == ("box",)
+    start, last = recorder.robot[0], recorder.robot[-1]
+    assert start.torso_height_m == pytest.approx(TORSO_M, abs=1e-6)
+    moved = np.abs(np.subtract(last.arm_rad["right"], start.arm_rad["right"]))
+    assert moved.max() > 0.05  # the arm went from the pre-grasp to the lift
+    assert last.arm_rad["left"] == pytest.approx(start.arm_rad["left"], abs=1e-3)
