@@ -178,8 +178,8 @@ class PhysicsWorld:
         *,
         base_pose_world: Sequence[float] = (0.0, 0.0, 0.0),
         torso_m: float = 0.0,
-        q_arm_rad: Mapping[Arm, Sequence[float]] | None = None,
-        object_poses: Mapping[str, Sequence[float]] | None = None,
+        q_arm_rad: Mapping[Arm, Sequence[float] | FloatArray] | None = None,
+        object_poses: Mapping[str, Sequence[float] | FloatArray] | None = None,
         particles_in: str | None = None,
         gripper_open: bool | Mapping[Arm, bool] = True,
     ) -> None:
@@ -205,7 +205,7 @@ class PhysicsWorld:
         if not 0.0 <= torso_m <= 0.31:
             raise InvalidConfiguration(f"torso_m must be in [0, 0.31] m, got {torso_m}")
         qpos[physics.qpos[TORSO_JOINT]] = torso_m
-        arms: dict[Arm, Sequence[float]] = dict(TUCKED_ARM_RAD)
+        arms: dict[Arm, Sequence[float] | FloatArray] = dict(TUCKED_ARM_RAD)
         arms.update(q_arm_rad or {})
         for arm in ARMS:
             q = _finite(arms[arm], 7, f"q_arm_rad[{arm!r}]")
@@ -244,7 +244,7 @@ class PhysicsWorld:
             self.data.qpos[self.physics.qpos[prefix + joint]] = angle_rad
         self.data.qpos[self.physics.qpos[prefix + "r_parallel_root_joint"]] = -angle_rad
 
-    def _place_free(self, body: int, pose: Sequence[float]) -> None:
+    def _place_free(self, body: int, pose: Sequence[float] | FloatArray) -> None:
         if len(pose) not in (3, 6):
             raise InvalidConfiguration(f"a pose is (x, y, z) or (x, y, z, roll, pitch, yaw), "
                                        f"got {len(pose)} values")
@@ -347,7 +347,7 @@ class PhysicsWorld:
         return Motion(reached, worst, self.time_s - began, self.robot_contacts())
 
     # -- motions -----------------------------------------------------------------------------
-    def track_arm(self, arm: Arm, q_target_rad: Sequence[float], duration_s: float, *,
+    def track_arm(self, arm: Arm, q_target_rad: Sequence[float] | FloatArray, duration_s: float, *,
                   settle_s: float = SETTLE_S, tolerance_rad: float = ARM_TOLERANCE_RAD
                   ) -> Motion:
         """Move ``arm``'s 7 joints to ``q_target_rad`` [rad] in ``duration_s`` under control.
@@ -525,7 +525,7 @@ def _arm(arm: str) -> Arm:
     return arm
 
 
-def _finite(values: Sequence[float], size: int, what: str) -> tuple[float, ...]:
+def _finite(values: Sequence[float] | FloatArray, size: int, what: str) -> tuple[float, ...]:
     array = np.asarray(values, dtype=float)
     if array.shape != (size,) or not np.all(np.isfinite(array)):
         raise InvalidConfiguration(f"{what} needs {size} finite values, got {values!r}")

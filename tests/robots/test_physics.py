@@ -15,7 +15,10 @@ from skillcompose.robots.errors import InvalidConfiguration
 from skillcompose.robots.ik import IKSolver, IKTarget
 from skillcompose.robots.model import (
     ARM_JOINTS,
+    ARMS,
+    TOOL_FRAMES,
     TUCKED_ARM_RAD,
+    Arm,
     RobotModel,
     RobotPose,
 )
@@ -91,13 +94,13 @@ def test_tool_frames_agree_with_pinocchio(pr2: RobotModel) -> None:
     for _ in range(5):
         base = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), float(rng.uniform(-3, 3)))
         torso = float(rng.uniform(0.0, 0.31))
-        q = {arm: tuple(pr2.chain(f"{arm}_arm").sample_coordinates(rng))
-             for arm in ("left", "right")}
+        q: dict[Arm, tuple[float, ...]] = {
+            arm: tuple(pr2.chain(f"{arm}_arm").sample_coordinates(rng)) for arm in ARMS}
         world.reset(base_pose_world=base, torso_m=torso, q_arm_rad=q)
         pin.framesForwardKinematics(full, data, pr2.full_q(RobotPose(base, torso, q)))
-        for arm, frame in (("left", "l_gripper_tool_frame"), ("right", "r_gripper_tool_frame")):
-            expected = data.oMf[full.getFrameId(frame)]
-            simulated = world.tool_transform(arm)  # type: ignore[arg-type]
+        for arm in ARMS:
+            expected = data.oMf[full.getFrameId(TOOL_FRAMES[arm])]
+            simulated = world.tool_transform(arm)
             assert np.linalg.norm(simulated.translation - expected.translation) < 1e-6
             assert np.linalg.norm(pin.log3(expected.rotation.T @ simulated.rotation)) < 1e-6
 
