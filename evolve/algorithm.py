@@ -16,7 +16,8 @@ the same breeding generator, and migration draws nothing at random.
 
 The loop (:func:`_generations`) is DEAP's ``eaSimple``: breed (:mod:`.breeding`), evaluate
 and record (:mod:`.generation`), and, before stopping, check the solution
-(:mod:`.solution_checks`). What a run knows and checkpoints is a
+(:mod:`.solution_checks`), until it is solved or a budget runs out (:mod:`.budgets`: no
+generation or check starts that could overrun one). What a run knows and checkpoints is a
 :class:`~skillcompose.evolve.state.RunState`; what it is asked for, a
 :class:`~skillcompose.evolve.plan.Plan`; what it writes at its end, :mod:`.export`.
 """
@@ -33,12 +34,12 @@ from skillcompose import FSA
 from skillcompose.task import Task
 
 from .backends import BACKENDS, make_evaluator
-from .breeding import breed
+from .budgets import checks_due, checks_episodes, next_generation, overrun, stop_reason
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
 from .evaluation import EvalLimits
 from .export import SeedNames, best_fsa, exporter, finish, named, unchanged
-from .generation import evaluate, record
+from .generation import cost, evaluate, record
 from .genome import Genome
 from .operators import initialize
 from .plan import Plan, check_arguments, make_plan
@@ -70,7 +71,7 @@ def evolve(
     check_trials: int | None = None,
     on_generation: Callable[[GenerationRecord], None] | None = None,
 ) -> EvolutionResult:
-    """Evolve an FSA for ``task`` (algorithm 1), stopping when solved or out of generations.
+    """Evolve an FSA for ``task`` (algorithm 1), stopping when solved or out of a budget.
 
     - ``cfg``: the settings (default: the ``default`` preset for this task,
       :func:`~skillcompose.evolve.config.preset_settings`: solved means the exported FSA
@@ -84,8 +85,9 @@ def evolve(
     - ``resume``: a run directory to continue from its last checkpoint (see
       :mod:`skillcompose.evolve.resume`). ``task`` must be the run's task; the seed, the
       settings, the simplification and the fresh-episode check are the run's. ``cfg``, when
-      given, may differ from the run's only in ``generations`` (to extend a run: the result
-      is the run an uninterrupted run to that budget would have given), ``checkpoint_every``,
+      given, may differ from the run's only in its budgets (``generations``,
+      ``max_evaluations``, ``max_episodes``: to extend a run, the result is the run an
+      uninterrupted run to those budgets would have given), ``checkpoint_every``,
       ``chunks_per_worker``, ``worker_max_jobs`` and ``worker_max_growth_mb``. A finished
       run is not touched (``result.unchanged``), but for its exported FSAs, written again
       when they were deleted.
@@ -144,8 +146,9 @@ def _evolve(
     if checkpoint is not None:
         assert rundir is not None
         fitness = _restore(run, checkpoint, rundir)
-        if fitness is not None and _finished(run) and run.exported:
-            return unchanged(run, checkpoint, rundir)
+        ended = stop_reason(run, fitness) if run.exported else None
+        if ended is not None:
+            return unchanged(run, checkpoint, rundir, ended)
         rundir.write_run_info(plan.info)
         rundir.rewrite_history([r.to_dict() for r in run.history])
     else:
@@ -160,18 +163,33 @@ def _evolve(
 def _restore(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir) -> list[float] | None:
     """Continue ``run`` from its checkpoint; the fitness of its population, if evaluated."""
     fitness = run.restore(checkpoint, str(rundir.checkpoint))
-    if run.cfg.generations < run.generation:  # finished or not: a budget cannot shrink
+    cfg = run.cfg
+    # finished or not, a budget cannot shrink below what the run has used
+    for option, limit, used in (("--max-evaluations", cfg.max_evaluations,
+                                 run.genome_evaluations),
+                                ("--max-episodes", cfg.max_episodes, run.evaluations)):
+        if limit is not None and limit < used:
+            raise CheckpointError(
+                f"{rundir.path} has used {used} {option[6:]} already; give {option} {used} "
+                "or more, or leave it out to keep the run's budget"
+            )
+    if cfg.generations < run.generation:
         raise CheckpointError(
             f"{rundir.path} has reached generation {run.generation} already; give "
             f"--generations {run.generation} or more"
         )
+    if fitness is None:  # bred, not evaluated: its jobs were counted when it was bred
+        over = overrun(run, *cost(run))
+        if over is not None:
+            evaluations, episodes = cost(run)
+            need = run.genome_evaluations + evaluations if over == "evaluations" else \
+                run.evaluations + episodes
+            raise CheckpointError(
+                f"{rundir.path} has bred generation {run.generation}, which takes "
+                f"{evaluations} evaluations ({episodes} episodes); give --max-{over} {need} "
+                "or more, or leave it out to keep the run's budget"
+            )
     return fitness
-
-
-def _finished(run: RunState) -> bool:
-    """Whether the run has solved its task or spent its budget."""
-    return (run.best is not None and run.task.solved(run.best[1])) \
-        or run.generation >= run.cfg.generations
 
 
 def _first_population(run: RunState, seed_genome: Genome | None) -> None:
@@ -190,12 +208,12 @@ def _generations(
     run: RunState, plan: Plan, fitness: list[float] | None,
     on_generation: Callable[[GenerationRecord], None] | None,
 ) -> list[float] | None:
-    """Algorithm 1's loop, until the task is solved or the budget spent: breed (each child
+    """Algorithm 1's loop, until the task is solved or a budget spent: breed (each child
     goes to the evaluator as it is born), evaluate, record, and check a solution before
-    stopping. The last generation's fitness."""
+    stopping. The last generation's fitness; ``run.stopped_by`` says what ended it."""
     task, cfg, rundir = run.task, run.cfg, run.rundir
-    solved = run.best is not None and task.solved(run.best[1])
-    if solved or (fitness is not None and run.generation >= cfg.generations):
+    run.stopped_by = stop_reason(run, fitness) or ""
+    if run.stopped_by:
         return fitness
     last_plot = time.perf_counter()
 
@@ -211,9 +229,17 @@ def _generations(
     evaluator = make_evaluator(plan.backend, task, plan.skills, plan.workers,
                                cfg.chunks_per_worker, limits, islands=cfg.islands)
     progress = Progress(plan.stream)
+    stop = _checks(run, fitness) if fitness is not None and run.checks_pending else None
     try:
-        while not solved and (fitness is None or run.generation < cfg.generations):
-            children = breed(run, fitness, bred) if fitness is not None else None
+        while stop is None:
+            children = None
+            if fitness is not None:
+                if run.generation >= cfg.generations:
+                    stop = "generations"
+                    break
+                children, stop = next_generation(run, fitness, bred)
+                if stop is not None:
+                    break
             t = time.perf_counter()
             fitness, episodes = evaluate(run, evaluator, children)
             _check_not_all_lost(run)
@@ -221,16 +247,31 @@ def _generations(
             progress.show(run, rec)
             if on_generation is not None:
                 on_generation(rec)
-            assert run.best is not None
-            solved = task.solved(run.best[1])
-            if solved and cfg.confirm_trials:
-                solved = confirm(run, fitness)
-            if solved and cfg.require_holds and not run.faults().lost:
-                solved = holds(run, fitness)
+            stop = _checks(run, fitness)
     finally:
         evaluator.close()
         progress.close(run)
+    run.stopped_by = stop
     return fitness
+
+
+def _checks(run: RunState, fitness: list[float]) -> str | None:
+    """After a generation: ``"solved"`` when its best at the target stands (confirmed and
+    holding, when asked), ``"episodes"`` when those checks could overrun the episode budget
+    (they wait for an extended run), else None: the run goes on."""
+    assert run.best is not None
+    if not run.task.solved(run.best[1]):
+        return None
+    if not checks_due(run):
+        return "solved"
+    over = overrun(run, 0, checks_episodes(run, fitness))
+    run.checks_pending = over is not None
+    if over is not None:
+        return over
+    solved = confirm(run, fitness) if run.cfg.confirm_trials else True
+    if solved and run.cfg.require_holds and not run.faults().lost:
+        solved = holds(run, fitness)
+    return "solved" if solved else None
 
 
 def _check_not_all_lost(run: RunState) -> None:

@@ -14,6 +14,7 @@ from skillcompose.errors import SkillcomposeError, printable
 
 from .config import (
     DEFAULT_PRESET,
+    MOST,
     PRESET_NAMES,
     TOPOLOGIES,
     EvolutionConfig,
@@ -41,13 +42,15 @@ examples:
   skillcompose evolve examples.toy_task --set p_fail=0.1 --generations 200 --out runs/toy
   skillcompose evolve --resume runs/toy                     continue a killed run
   skillcompose evolve --resume runs/toy --generations 400   extend a run to 400 generations
+  skillcompose evolve examples.toy_task --max-evaluations 30000 --out runs/toy3
+                                        stop after 30,000 genome evaluations at most
   skillcompose evolve examples.toy_task --seed-fsa edited.yaml --out runs/toy2
 
 A resumed run is the run it would have been without the interruption. It keeps its task,
-seed and settings: giving others is refused; only --generations (to extend it), --backend,
---workers, --worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet may
-change. A finished run is left as it is, but for its best.yaml and best_evolved.yaml,
-written again if they were deleted.
+seed and settings: giving others is refused; only the budgets (--generations,
+--max-evaluations, --max-episodes: to extend it), --backend, --workers, --worker-max-jobs,
+--worker-max-growth-mb, --checkpoint-every and --quiet may change. A finished run is left
+as it is, but for its best.yaml and best_evolved.yaml, written again if they were deleted.
 """
 
 # options whose absence matters on --resume: None until given (a new run's defaults: seed 0,
@@ -70,7 +73,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         whole,
     )
 
-    big = 10**7  # generations, individuals, jobs: bounded, far beyond any real run
+    big = MOST  # generations, budgets, intervals, jobs: the settings' own bound
     p.add_argument(
         "task", nargs="?", type=module_or_file,
         help="task module (dotted name or .py path) defining make_task(**settings); "
@@ -80,6 +83,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    type=setting,
                    help="a task setting passed to make_task (repeatable), e.g. p_fail=0.2")
     p.add_argument("--generations", type=whole(0, big), help="generation budget (default 1000)")
+    p.add_argument("--max-evaluations", type=whole(1, big), metavar="N",
+                   help="evaluation budget: at most N genomes evaluated (elites kept and cache "
+                   "hits are free); the run stops before a generation that would overrun it "
+                   "(default: none)")
+    p.add_argument("--max-episodes", type=whole(1, big), metavar="N",
+                   help="episode budget: at most N episodes of evaluations, confirmations and "
+                   "holds tests (the final check of the exported FSA is outside it); the run "
+                   "stops before a generation or check that could overrun it (default: none)")
     p.add_argument("--population", type=whole(2, 10**6),
                    help="individuals N (default 300, table 1)")
     p.add_argument("--initial-nodes", type=whole(1, 10_000),
@@ -188,7 +199,8 @@ def _config(args: argparse.Namespace, deterministic: bool = False) -> EvolutionC
 
 
 _SETTING_OPTIONS = (
-    ("generations", "generations"), ("population", "population"),
+    ("generations", "generations"), ("max_evaluations", "max_evaluations"),
+    ("max_episodes", "max_episodes"), ("population", "population"),
     ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
     ("tournament", "tournament"), ("param_sigma", "param_sigma"),
     ("confirm_trials", "confirm_trials"), ("confirm_rate", "confirm_rate"),
@@ -295,7 +307,8 @@ def _resume(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
     if problems:
         raise EvolutionError(
             f"--resume {args.resume}: {'; '.join(problems)} would change the run; leave them "
-            "out (a resume may change only --generations, --backend, --workers, "
+            "out (a resume may change only --generations, --max-evaluations, --max-episodes, "
+            "--backend, --workers, "
             "--worker-max-jobs, --worker-max-growth-mb, --checkpoint-every and --quiet)"
         )
     return load_recorded_task(record, args.resume), record
@@ -380,8 +393,10 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
 
     state = "solved" if result.solved else "not solved"
     if result.unchanged:
-        why = "solved" if result.solved else (
-            f"not solved in its budget of {result.budget} generations")
+        ended = result.stopped_by if result.stopped_by in ("evaluations", "episodes") \
+            else "generations"
+        limit = result.budgets.get(ended, {}).get("limit") or result.budget
+        why = "solved" if result.solved else f"not solved in its budget of {limit} {ended}"
         restored = ", ".join(p.name for p in result.files)
         print(
             f"{args.resume}: the run finished in generation {result.generations} ({why}); "
@@ -394,15 +409,19 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
                "NEW_FOLDER" if result.solved else "")
             + ("" if result.solved else
                f" Extend it with: skillcompose evolve --resume {args.resume} "
-               f"--generations {2 * max(result.budget, 1)}")
+               f"--{'generations' if ended == 'generations' else 'max-' + ended} "
+               f"{2 * max(limit, 1)}")
         )
         return 0
     print(
         f"{task.name}: {state}, best fitness {result.best_fitness:g} after "
-        f"{result.generations} generations, {result.evaluations} evaluations, "
+        f"{result.generations} generations, {result.episodes} episodes, "
         f"{result.wall_time:.1f} s; best FSA has {len(result.best_fsa.states)} states "
         f"(evolved: {len(result.evolved_fsa.states)})"
     )
+    if any(result.budgets.get(b, {}).get("limit") is not None
+           for b in ("evaluations", "episodes")):
+        print(budget_line(result))
     fresh = result.fresh
     if fresh:
         print(f"the exported FSA: {describe_fresh(fresh)}; mean fitness "
@@ -447,6 +466,19 @@ def _warn(result: EvolutionResult, cfg: EvolutionConfig,
         )
 
 
+def budget_line(result: EvolutionResult) -> str:
+    """What ended the run and what it used of each budget, in one line."""
+    parts = []
+    for name in ("generations", "evaluations", "episodes"):
+        use = result.budgets.get(name, {})
+        limit = use.get("limit")
+        parts.append(f"{use.get('used', 0):,} {name}" +
+                     ("" if limit is None else f" of {limit:,}"))
+    ended = "solved" if result.stopped_by == "solved" else \
+        f"ended by its {result.stopped_by} budget" if result.stopped_by else "ended"
+    return f"{ended}: used {', '.join(parts)}"
+
+
 def summary_document(result: EvolutionResult, task_name: str) -> dict[str, Any]:
     """What ``skillcompose evolve --json`` prints: the run's summary (keys documented in the
     README)."""
@@ -456,6 +488,8 @@ def summary_document(result: EvolutionResult, task_name: str) -> dict[str, Any]:
         "solved": result.solved, "solved_by": result.solved_by, "unchanged": result.unchanged,
         "best_fitness": result.best_fitness, "generations": result.generations,
         "budget": result.budget, "evaluations": result.evaluations,
+        "genome_evaluations": result.genome_evaluations, "episodes": result.episodes,
+        "stopped_by": result.stopped_by or None, "budgets": result.budgets,
         "wall_time_s": result.wall_time, "states": len(result.best_fsa.states),
         "evolved_states": len(result.evolved_fsa.states),
         "fresh": dict(result.fresh) or None,

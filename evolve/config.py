@@ -16,10 +16,12 @@ from skillcompose.limits import MAX_TRIALS  # the command line's bound, for file
 
 from .errors import EvolutionConfigError
 
-__all__ = ["DEFAULT_PRESET", "PRESETS", "PRESET_ABOUT", "PRESET_NAMES", "TOPOLOGIES",
+__all__ = ["DEFAULT_PRESET", "MOST", "PRESETS", "PRESET_ABOUT", "PRESET_NAMES", "TOPOLOGIES",
            "EvolutionConfig", "preset_help", "preset_settings"]
 
-_MOST = 10**9  # generations, intervals, jobs: bounded, far beyond any real run
+MOST = 10**9
+"""The bound of the counts (generations and the other budgets, intervals, jobs): far beyond
+any real run. The command line's options check the same bound."""
 
 TOPOLOGIES = ("ring", "complete")
 
@@ -41,6 +43,21 @@ class EvolutionConfig:
     - ``param_sigma``: standard deviation of the parameter noise, in units of [0, 1]
       (PyEvolve's real Gaussian mutator used 0.05).
     - ``generations``: the budget; the run stops earlier when the task is solved.
+
+    Budgets beyond the paper's (None: none; see docs/evolve.md, "Budgets"). Every budget
+    holds at once: the run stops at whichever comes first, or when it solves the task.
+
+    - ``max_evaluations``: genome evaluations, never more. An evaluation is a genome run on
+      its trials to rank it in a generation; what costs no run is free (an elite kept, a
+      cache hit, a genome's second copy in a generation), a cache refresh counts.
+    - ``max_episodes``: episodes, never more: those of evaluations, confirmations and
+      holds tests. Simplification and the final fresh check of the exported FSA, which
+      come after the search, are outside it.
+
+    A generation is evaluated whole or not at all: when the next one would overrun a budget
+    the run stops before it, and a generation's confirmations and holds tests run only if
+    the episodes they may take at most fit (else the run stops before them, unsolved, and an
+    extended run runs them first). The first generation must fit.
 
     Options beyond the paper (all off by default):
 
@@ -145,6 +162,8 @@ class EvolutionConfig:
     tournament: int = 2
     param_sigma: float = 0.05
     generations: int = 1000
+    max_evaluations: int | None = None
+    max_episodes: int | None = None
     elitism: int = 0
     trials: int | None = None
     common_random_numbers: bool = False
@@ -178,7 +197,7 @@ class EvolutionConfig:
     def __post_init__(self) -> None:
         problems: list[str] = []
 
-        def whole(name: str, low: int, high: int = _MOST) -> None:
+        def whole(name: str, low: int, high: int = MOST) -> None:
             v = getattr(self, name)
             if not whole_in(v, low, high):
                 problems.append(f"{name} = {v!r}: expected a whole number from {low} to "
@@ -193,6 +212,11 @@ class EvolutionConfig:
         whole("initial_nodes", 1, 10_000)
         whole("tournament", 1, 10**6)
         whole("generations", 0)
+        for name in ("max_evaluations", "max_episodes"):
+            v = getattr(self, name)
+            if v is not None and not whole_in(v, 1, MOST):
+                problems.append(f"{name} = {v!r}: expected a whole number from 1 to "
+                                f"{MOST:,}, or None for no budget")
         whole("elitism", 0, 10**6)
         whole("cache_refresh", 0, MAX_TRIALS)
         whole("confirm_trials", 0, MAX_TRIALS)

@@ -172,6 +172,7 @@ def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionR
     # killed: then the test, which runs the task in this process, was not run)
     solved_by = "holds" if cfg.require_holds and not lost else "evaluation"
     solved = task.solved(best_f) and (solved_by == "evaluation" or run.holds_passed is not None)
+    solved = solved and not run.checks_pending  # its checks did not fit in the budget
     fresh = _fresh(run, best, best_f, solved and solved_by == "holds", check_used)
     faults = run.faults()
     files: list[Path] = []
@@ -182,6 +183,8 @@ def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionR
             "best_fitness": best_f,
             "generations": run.generation,
             "evaluations": run.evaluations,
+            "stopped_by": run.stopped_by,
+            "budgets": run.budget_use(),
             "fresh": fresh,
             "faults": faults.to_dict(),
             "first_error": faults.first_error,
@@ -204,6 +207,9 @@ def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionR
         faults=faults,
         fresh=fresh,
         solved_by=solved_by,
+        genome_evaluations=run.genome_evaluations,
+        stopped_by=run.stopped_by,
+        budgets=run.budget_use(),
     )
 
 
@@ -252,10 +258,11 @@ def _write_final(run: RunState, fitness: list[float], evolved: FSA, best: FSA,
             rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
 
 
-def unchanged(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir) -> EvolutionResult:
-    """The result of a run that had finished: read from its checkpoint. Nothing is written
-    but the exported FSAs found missing (deleted), written again as the run wrote them;
-    ``files`` names those."""
+def unchanged(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir,
+              stopped_by: str) -> EvolutionResult:
+    """The result of a run that had finished (``stopped_by`` what): read from its
+    checkpoint. Nothing is written but the exported FSAs found missing (deleted), written
+    again as the run wrote them; ``files`` names those."""
     assert run.best is not None
     text = checkpoint.get("best_yaml")
     evolved = named(run, best_fsa(run))
@@ -264,6 +271,7 @@ def unchanged(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir) -> E
     g, f, _ = run.best
     solved_by = "holds" if run.cfg.require_holds and not run.faults().lost else "evaluation"
     solved = run.task.solved(f) and (solved_by == "evaluation" or run.holds_passed is not None)
+    solved = solved and not run.checks_pending
     restored: list[Path] = []
     for path, again in ((rundir.best_yaml, text if isinstance(text, str) else None),
                         (rundir.best_evolved_yaml, None)):
@@ -279,5 +287,6 @@ def unchanged(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir) -> E
         unchanged=True, budget=run.cfg.generations,
         run_command=run_command(str(rundir.best_yaml), run.record_info),
         faults=run.faults(), fresh=fresh if isinstance(fresh, dict) else {},
-        solved_by=solved_by,
+        solved_by=solved_by, genome_evaluations=run.genome_evaluations,
+        stopped_by=stopped_by, budgets=run.budget_use(),
     )

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from .breeding import note_islands
@@ -21,11 +21,62 @@ from .genome import Genome
 from .result import GenerationRecord
 from .state import EVAL_STREAM, RunState, fold
 
-__all__ = ["evaluate", "record"]
+__all__ = ["cost", "evaluate", "record"]
 
 
 def _nan_safe(f: float, minimize: bool) -> float:
     return (math.inf if minimize else -math.inf) if math.isnan(f) else f
+
+
+class _Jobs:
+    """The jobs of generation ``g``, made as its individuals come: a job for each genome
+    the cache does not know (elites keep their fitness with the cache, a genome twice in the
+    generation is run once, a cached one runs ``cache_refresh`` trials when asked)."""
+
+    def __init__(self, run: RunState, g: int) -> None:
+        self.run, self.g = run, g
+        self.fitness: list[float | None] = []
+        self.jobs: list[Job] = []
+        self.slots: list[list[int]] = []  # the individuals each job stands for
+        self.keys: list[tuple[Any, ...] | None] = []
+        self._by_key: dict[tuple[Any, ...], int] = {}
+
+    def make(self, individuals: Iterable[Genome]) -> Iterator[Job]:
+        run, cfg, fitness, keys = self.run, self.run.cfg, self.fitness, self.keys
+        for i, ind in enumerate(individuals):
+            fitness.append(None)
+            keys.append(None)
+            uid = ind.origin.get("uid")
+            if uid in run.elite_fitness and cfg.cache and cfg.cache_refresh == 0:
+                fitness[i] = run.elite_fitness[uid]
+                continue
+            spawn = (EVAL_STREAM, self.g) if cfg.common_random_numbers else \
+                (EVAL_STREAM, self.g, i)
+            trials = run.trials
+            if cfg.cache:
+                k = ind.key()
+                keys[i] = k
+                if k in self._by_key:  # the same genome twice in this generation
+                    self.slots[self._by_key[k]].append(i)
+                    continue
+                if k in run.cache:
+                    if cfg.cache_refresh == 0:
+                        total, count = run.cache[k]
+                        fitness[i] = total / count
+                        continue
+                    trials = cfg.cache_refresh
+                self._by_key[k] = len(self.jobs)
+            self.jobs.append(Job.of(ind, run.seed, spawn, trials))
+            self.slots.append([i])
+            yield self.jobs[-1]
+
+
+def cost(run: RunState) -> tuple[int, int]:
+    """The evaluations and episodes that evaluating the population (bred, not evaluated
+    yet) will take."""
+    batch = _Jobs(run, run.generation)
+    jobs = list(batch.make(run.population))
+    return len(jobs), sum(j.trials for j in jobs)
 
 
 def evaluate(
@@ -37,46 +88,16 @@ def evaluate(
     bred."""
     cfg = run.cfg
     g = run.generation + 1 if bred is not None else run.generation
-    fitness: list[float | None] = []
-    jobs: list[Job] = []
-    slots: list[list[int]] = []
-    by_key: dict[tuple[Any, ...], int] = {}
-    keys: list[tuple[Any, ...] | None] = []
-
-    def new_jobs() -> Iterator[Job]:
-        for i, ind in enumerate(bred if bred is not None else run.population):
-            fitness.append(None)
-            keys.append(None)
-            uid = ind.origin.get("uid")
-            if uid in run.elite_fitness and cfg.cache and cfg.cache_refresh == 0:
-                fitness[i] = run.elite_fitness[uid]
-                continue
-            spawn = (EVAL_STREAM, g) if cfg.common_random_numbers else (EVAL_STREAM, g, i)
-            trials = run.trials
-            if cfg.cache:
-                k = ind.key()
-                keys[i] = k
-                if k in by_key:  # the same genome twice in this generation
-                    slots[by_key[k]].append(i)
-                    continue
-                if k in run.cache:
-                    if cfg.cache_refresh == 0:
-                        total, count = run.cache[k]
-                        fitness[i] = total / count
-                        continue
-                    trials = cfg.cache_refresh
-                by_key[k] = len(jobs)
-            jobs.append(Job.of(ind, run.seed, spawn, trials))
-            slots.append([i])
-            yield jobs[-1]
-
-    results = evaluator.evaluate(new_jobs(), expected=cfg.population)
+    batch = _Jobs(run, g)
+    results = evaluator.evaluate(batch.make(bred if bred is not None else run.population),
+                                 expected=cfg.population)
+    fitness, jobs, keys = batch.fitness, batch.jobs, batch.keys
     assert run.generation == g and len(fitness) == len(run.population)
     run.gen_faults = evaluator.faults
     if run.first_error is None and run.gen_faults.first_error is not None:
         run.first_error = f"in generation {g}: {run.gen_faults.first_error}"
     episodes = sum(j.trials for j in jobs)
-    for job, idx, f in zip(jobs, slots, results, strict=True):
+    for job, idx, f in zip(jobs, batch.slots, results, strict=True):
         f = _nan_safe(float(f), run.task.minimize)
         if cfg.cache:
             key = keys[idx[0]]

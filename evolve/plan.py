@@ -125,6 +125,8 @@ def make_plan(
     if task.deterministic:
         trials = 1
         simplify_used, check_used = min(simplify_used, 1), min(check_used, 1)
+    if checkpoint is None:  # a resumed run's budgets are checked against what it used
+        _check_first_generation(cfg, trials)
     stream: TextIO | None = sys.stderr if progress is True else (progress or None)
     if backend == "process" and workers is None:
         workers = os.cpu_count() or 1
@@ -143,6 +145,22 @@ def make_plan(
                 simplify_trials=simplify_used, check_trials=check_used, stream=stream,
                 record=record, seed_text=seed_text, seed_fsa=seed_source,
                 seed_genome=seed_genome)
+
+
+def _check_first_generation(cfg: EvolutionConfig, trials: int) -> None:
+    """Refuse budgets that cannot hold the first generation: every individual evaluated
+    on ``trials`` episodes."""
+    for option, limit, need in (
+            ("max_evaluations", cfg.max_evaluations, cfg.population),
+            ("max_episodes", cfg.max_episodes, cfg.population * trials)):
+        if limit is not None and limit < need:
+            raise EvolutionError(
+                f"{option} = {limit} cannot hold the first generation ({need:,} "
+                f"{option[4:]}: {cfg.population} individuals"
+                + ("" if option == "max_evaluations" else f" of {trials} trials")
+                + f"); give --{option.replace('_', '-')} {need} or more, or a smaller "
+                "population"
+            )
 
 
 def _seed_source(

@@ -40,6 +40,11 @@ class Progress:
         if faults:
             postfix += f", faults: {faults}"
         desc = f"gen {rec.generation}/{run.cfg.generations}"
+        cfg = run.cfg
+        if cfg.max_evaluations is not None:
+            desc += f", evals {run.genome_evaluations:,}/{cfg.max_evaluations:,}"
+        if cfg.max_episodes is not None:
+            desc += f", episodes {run.evaluations:,}/{cfg.max_episodes:,}"
         if getattr(self.stream, "isatty", lambda: False)():
             if self._bar is None:
                 self._bar = tqdm(

@@ -43,7 +43,7 @@ class EvolutionResult:
     best_fitness: float  # as measured during evolution
     solved: bool
     generations: int  # the index of the last generation evaluated (0: the initial one)
-    evaluations: int  # episodes run during evolution
+    evaluations: int  # episodes run during evolution (the older name; also ``episodes``)
     wall_time: float
     history: list[GenerationRecord]
     evolved_fsa: FSA  # the best FSA as evolved, before simplification
@@ -60,6 +60,19 @@ class EvolutionResult:
     # "holds": solved means the exported FSA held on fresh episodes (``fresh``, kind
     # "holds"); "evaluation": solved when an evaluation reached the target (the paper)
     solved_by: str = "evaluation"
+    genome_evaluations: int = 0  # genomes evaluated to rank them (what max_evaluations bounds)
+    # what ended the run: "solved", or the budget it used: "generations", "evaluations" or
+    # "episodes" (see skillcompose.evolve.budgets)
+    stopped_by: str = ""
+    # each budget's limit (None: none) and what the run used of it:
+    # {"generations": {"limit": 1000, "used": 37}, "evaluations": {...}, "episodes": {...}}
+    budgets: dict[str, dict[str, int | None]] = field(default_factory=dict)
+
+    @property
+    def episodes(self) -> int:
+        """Episodes of evaluations, confirmations and holds tests (what max_episodes
+        bounds; ``evaluations`` is the same count under its older name)."""
+        return self.evaluations
 
     def _repr_html_(self) -> str:
         """In a notebook: the summary, the fitness per generation and the best FSA."""
@@ -71,7 +84,9 @@ class EvolutionResult:
         rows = [
             ("solved", self.solved), ("best fitness", f"{self.best_fitness:g}"),
             ("generations", f"{self.generations} of {self.budget}"),
-            ("evaluations", self.evaluations), ("wall time", f"{self.wall_time:.1f} s"),
+            ("evaluations", self._used("evaluations", self.genome_evaluations)),
+            ("episodes", self._used("episodes", self.evaluations)),
+            ("ended by", self.stopped_by or "?"), ("wall time", f"{self.wall_time:.1f} s"),
             ("states (evolved)", f"{len(self.best_fsa.states)} "
                                  f"({len(self.evolved_fsa.states)})"),
             ("seed", self.seed),
@@ -87,6 +102,10 @@ class EvolutionResult:
             rows.append(("run directory", self.out_dir))
         return (html_table(("", ""), rows) + history_svg([r.to_dict() for r in self.history])
                 + to_svg(self.best_fsa))
+
+    def _used(self, budget: str, used: int) -> str:
+        limit = self.budgets.get(budget, {}).get("limit")
+        return f"{used:,}" if limit is None else f"{used:,} of {limit:,}"
 
     @property
     def nothing_succeeded(self) -> bool:

@@ -10,9 +10,10 @@ checkpoint holds that record under its checksum; ``run.json`` shows it to people
   ``p_fail``, is refused, naming what differs);
 - the task is imported only by the module name recorded at the start, and never from a
   file inside the run directory (a directory received from someone else could carry one);
-- settings given again must equal the recorded ones: only the generation budget may grow
-  (extending the run), and how it is evaluated (backend, workers, when workers are
-  replaced) and checkpointed may change, as none of them changes the result.
+- settings given again must equal the recorded ones: only the budgets (generations,
+  evaluations, episodes) may grow (extending the run), and how it is evaluated (backend,
+  workers, when workers are replaced) and checkpointed may change, as none of them changes
+  the result.
 
 :func:`open_resumed` locks the run directory and checks all of this before a resumed run
 starts.
@@ -50,9 +51,9 @@ MEANING = ("task", "task_module", "task_settings", "seed", "seed_fsa", "config",
            "simplify_trials", "check_trials")
 """The keys of a run record that make the run what it is."""
 
-FREE_SETTINGS = ("generations", "checkpoint_every", "chunks_per_worker", "worker_max_jobs",
-                 "worker_max_growth_mb")
-"""Evolution settings a resume may change: the budget (a longer run is the same run, only
+FREE_SETTINGS = ("generations", "max_evaluations", "max_episodes", "checkpoint_every",
+                 "chunks_per_worker", "worker_max_jobs", "worker_max_growth_mb")
+"""Evolution settings a resume may change: the budgets (a longer run is the same run, only
 longer) and bookkeeping that does not change the result (checkpoints, chunking, replacing
 pool workers and Ray actors). ``eval_time_limit`` is not among them: which evaluations
 time out, and so score worst, depends on it."""
@@ -242,7 +243,7 @@ def _resumed(
     if problems:
         raise CheckpointError(
             f"{rundir.path}: resuming with {'; '.join(problems)} would change the run; leave "
-            "them out (a resume may change only the generation budget, the backend, the "
+            "them out (a resume may change only the budgets, the backend, the "
             "workers, when workers are replaced and how often it checkpoints)"
         )
     return record, recorded_cfg

@@ -20,9 +20,10 @@ from .genome import Genome
 from .holds import FreshCheck, holds_test, required_rate
 from .state import CONFIRM_STREAM, RunState, fold
 
-__all__ = ["confirm", "confirm_candidates", "confirmation", "demote", "holds", "holds_check"]
+__all__ = ["HOLDS_CANDIDATES", "confirm", "confirm_candidates", "confirmation", "demote", "holds",
+           "holds_candidates", "holds_check"]
 
-_HOLDS_CANDIDATES = 3  # genomes at the target whose FSA is tested for holding, a generation
+HOLDS_CANDIDATES = 3  # genomes at the target whose FSA is tested for holding, a generation
 
 
 def confirm(run: RunState, fitness: list[float]) -> bool:
@@ -106,11 +107,10 @@ def confirm_candidates(run: RunState, fitness: list[float]) -> bool:
     return False
 
 
-def holds(run: RunState, fitness: list[float]) -> bool:
-    """``require_holds``: test the genomes at the target (the run's best first, then the
-    population's by rank), skipping those that failed before, up to
-    ``_HOLDS_CANDIDATES`` a generation, until one holds; it becomes the best. A genome
-    that fails is demoted to the mean of its test's episodes and never tested again."""
+def holds_candidates(run: RunState, fitness: list[float]) -> list[tuple[Genome, float, int]]:
+    """The genomes at the target a holds test would try, in order (the run's best first,
+    then the population's by rank), each once, none that failed before: (genome, fitness,
+    generation found)."""
     assert run.best is not None
     task = run.task
     sizes = [len(x) for x in run.population]
@@ -118,22 +118,31 @@ def holds(run: RunState, fitness: list[float]) -> bool:
                    key=lambda i: (*run.rank_key(fitness[i], sizes[i]), i))
     candidates = [run.best] + [(run.population[i], fitness[i], run.generation)
                                for i in order]
-    tried: set[tuple[Any, ...]] = set()
+    seen: set[tuple[Any, ...]] = set()
+    out = []
     for g, f, gen in candidates:
         key = g.key()
-        if not task.solved(f) or key in tried or key in run.holds_failed:
-            continue
-        if len(tried) == _HOLDS_CANDIDATES:
-            break
-        check = holds_check(run, g, len(tried))
-        tried.add(key)
+        if task.solved(f) and key not in seen and key not in run.holds_failed:
+            seen.add(key)
+            out.append((g, f, gen))
+    return out
+
+
+def holds(run: RunState, fitness: list[float]) -> bool:
+    """``require_holds``: test the genomes at the target (the run's best first, then the
+    population's by rank), skipping those that failed before, up to
+    ``HOLDS_CANDIDATES`` a generation, until one holds; it becomes the best. A genome
+    that fails is demoted to the mean of its test's episodes and never tested again."""
+    for k, (g, f, gen) in enumerate(holds_candidates(run, fitness)[:HOLDS_CANDIDATES]):
+        check = holds_check(run, g, k)
         if check.passed:
             run.best = (g.copy(), f, gen)
             run.holds_passed = {"generation": run.generation,
                                 "fresh": check.to_dict()}
             return True
-        run.holds_failed[key] = check.mean_fitness
+        run.holds_failed[g.key()] = check.mean_fitness
         demote(run, g, fitness, f, check.mean_fitness, check.episodes)
+    assert run.best is not None
     g, _, gen = run.best
     if g.key() in run.holds_failed:  # not taken for solved, by resume either
         run.best = (g, run.holds_failed[g.key()], gen)

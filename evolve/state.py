@@ -115,8 +115,12 @@ class RunState:
         # the one that held (its key, the generation, and the check of its exported FSA)
         self.holds_failed: dict[tuple[Any, ...], float] = {}
         self.holds_passed: dict[str, Any] | None = None
+        # the last generation reached the target, but its confirmations and holds tests did
+        # not fit in the episode budget: an extended run runs them first
+        self.checks_pending = False
+        self.stopped_by = ""  # what ended the run: "solved" or a budget's name (budgets.py)
         self.export: Callable[[FSA], FSA] = lambda fsa: fsa  # what the run would write
-        self.evaluations = 0
+        self.evaluations = 0  # episodes: evaluations', confirmations' and holds tests'
         self.wall_before = 0.0
         self.next_uid = 0
         self.elite_fitness: dict[int, float] = {}
@@ -149,6 +153,7 @@ class RunState:
             "confirm_failed": [[list(k), mean] for k, mean in self.confirm_failed.items()],
             "holds_failed": [[list(k), mean] for k, mean in self.holds_failed.items()],
             "holds_passed": self.holds_passed,
+            "checks_pending": self.checks_pending,
             "evaluations": self.evaluations,
             "wall_time": self.wall(),
             "next_uid": self.next_uid,
@@ -197,6 +202,10 @@ class RunState:
                                            and isinstance(passed.get("fresh"), dict)):
                 raise TypeError("holds_passed is not an object with its fresh check")
             self.holds_passed = passed
+            pending = st.get("checks_pending", False)
+            if not isinstance(pending, bool):
+                raise TypeError("checks_pending is not true or false")
+            self.checks_pending = pending
             self.evaluations = _whole(st["evaluations"])
             self.wall_before = _number(st["wall_time"])
             self.next_uid = _whole(st["next_uid"])
@@ -241,6 +250,21 @@ class RunState:
     def rank_key(self, fitness: float, size: int) -> tuple[float, int]:
         f = fitness if self.task.minimize else -fitness
         return (f, size if self.cfg.parsimony else 0)
+
+    @property
+    def genome_evaluations(self) -> int:
+        """Genomes evaluated so far (what ``max_evaluations`` bounds): the jobs of every
+        recorded generation, the same on every backend."""
+        return self.fault_totals.jobs
+
+    def budget_use(self) -> dict[str, dict[str, int | None]]:
+        """Each budget's limit (None: none) and what the run has used of it."""
+        return {
+            "generations": {"limit": self.cfg.generations, "used": self.generation},
+            "evaluations": {"limit": self.cfg.max_evaluations,
+                            "used": self.genome_evaluations},
+            "episodes": {"limit": self.cfg.max_episodes, "used": self.evaluations},
+        }
 
     def faults(self) -> Faults:
         """The run's faults so far, from its history."""

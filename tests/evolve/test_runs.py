@@ -542,7 +542,8 @@ def test_the_progress_line_shows_the_best_evaluation_so_far() -> None:
                for g, best in enumerate([1.0, 0.5, 0.8])]
     run = SimpleNamespace(history=records, best=(None, 0.9, 1),
                           task=SimpleNamespace(minimize=True),
-                          cfg=SimpleNamespace(generations=10),
+                          cfg=SimpleNamespace(generations=10, max_evaluations=None,
+                                            max_episodes=None),
                           fault_totals=SimpleNamespace(describe=lambda: ""))
     log = io.StringIO()
     Progress(log).show(run, records[-1])  # type: ignore[arg-type]
