@@ -1,0 +1,55 @@
+"""The comparison with the paper on its own terms, in its quick mode: each algorithm runs
+within its budget in episodes, every exported FSA is measured on fresh worlds and on the PR2
+model, and the rows resume with ``--append``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import compare_paper  # noqa: E402
+
+
+@pytest.mark.slow  # two short runs of moving to push, each judged on the PR2 model: ~5 s
+@pytest.mark.kinematics
+def test_the_quick_comparison_keeps_budgets_and_resumes(tmp_path: Path) -> None:
+    args = ["--quick", "--experiments", "push-layered", "--algorithms", "table1,ours",
+            "--seeds", "1", "--out", str(tmp_path)]
+    assert compare_paper.main(args) == 0
+    rows = json.loads((tmp_path / "paper_comparison.json").read_text())
+    assert [(r["algorithm"], r["world"], r["seed"]) for r in rows] == [
+        ("table1", "paper", 0), ("ours", "paper", 0)]
+    for r in rows:
+        assert 0 < r["episodes"] <= r["budget_episodes"]
+        assert r["fresh_episodes"] == 50 and r["robot_episodes"] == 10
+        assert 0 <= r["fresh_successes"] <= 50 and 0 <= r["robot_successes"] <= 10
+    text = (tmp_path / "paper_comparison.md").read_text()
+    assert "Written by `benchmarks/compare_paper.py`" in text
+    assert "| push-layered | table 1 | " in text and "| push-layered | ours | " in text
+    before = (tmp_path / "paper_comparison.json").read_text()
+    assert compare_paper.main([*args, "--append"]) == 0  # nothing left to run
+    assert (tmp_path / "paper_comparison.json").read_text() == before
+
+
+def test_table_1_is_the_paper_preset_with_one_world_per_evaluation() -> None:
+    exp = compare_paper.EXPERIMENTS["push-layered"]
+    cfg = compare_paper.config_for(exp, "table1", None)
+    assert (cfg.population, cfg.initial_nodes, cfg.tournament, cfg.elitism) == (300, 50, 2, 0)
+    assert cfg.trials == 1 and cfg.generations == 1633 and not cfg.require_holds
+    ours = compare_paper.config_for(exp, "ours", None)
+    assert ours.max_episodes == 1633 * 300 // 2 and ours.require_holds
+    worlds = compare_paper.config_for(compare_paper.EXPERIMENTS["stacking"], "table1-worlds",
+                                      None)
+    assert worlds.max_episodes == 603 * 300 and worlds.trials is None
+
+
+def test_unknown_algorithms_and_worlds_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        compare_paper.main(["--algorithms", "genetic"])
+    assert "--algorithms: unknown ['genetic']" in capsys.readouterr().err
