@@ -3,26 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shlex
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from skillcompose.arguments import add_json_option, json_output, print_json, set_hint
-from skillcompose.errors import SkillcomposeError, printable
+from skillcompose.errors import SkillcomposeError, clip, printable
 
-from .config import (
-    DEFAULT_PRESET,
-    MOST,
-    PRESET_NAMES,
-    TOPOLOGIES,
-    EvolutionConfig,
-    preset_help,
-    preset_settings,
-)
+from .config import DEFAULT_PRESET, PRESET_NAMES, EvolutionConfig, preset_help, preset_settings
 from .config import EVALUATION_BACKENDS as BACKENDS
 from .errors import EvolutionError
+from .settings import FLAGGED, Kind, Setting
 
 if TYPE_CHECKING:
     from skillcompose.task import Task
@@ -58,22 +53,20 @@ as it is, but for its best.yaml and best_evolved.yaml, written again if they wer
 _UNSET_UNTIL_GIVEN = ("seed", "preset", "simplify_trials", "check_trials")
 
 
-# long: one add_argument per option, in the order --help lists them
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The options of ``skillcompose evolve``, each checked where it is parsed."""
+    """The options of ``skillcompose evolve``, each checked where it is parsed: the run's,
+    written here, then one per evolution setting of the table that has a flag."""
     from skillcompose.arguments import (
         MAX_TRIALS,
         MAX_WORKERS,
         existing_dir,
         module_or_file,
-        number,
         output_dir,
         seed,
         setting,
         whole,
     )
 
-    big = MOST  # generations, budgets, intervals, jobs: the settings' own bound
     p.add_argument(
         "task", nargs="?", type=module_or_file,
         help="task module (dotted name or .py path) defining make_task(**settings); "
@@ -82,30 +75,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", dest="settings", action="append", default=[], metavar="NAME=VALUE",
                    type=setting,
                    help="a task setting passed to make_task (repeatable), e.g. p_fail=0.2")
-    p.add_argument("--generations", type=whole(0, big), help="generation budget (default 1000)")
-    p.add_argument("--max-evaluations", type=whole(1, big), metavar="N",
-                   help="evaluation budget: at most N genomes evaluated (elites kept and cache "
-                   "hits are free); the run stops before a generation that would overrun it "
-                   "(default: none)")
-    p.add_argument("--max-episodes", type=whole(1, big), metavar="N",
-                   help="episode budget: at most N episodes of evaluations, confirmations and "
-                   "holds tests (the final check of the exported FSA is outside it); the run "
-                   "stops before a generation or check that could overrun it (default: none)")
-    p.add_argument("--population", type=whole(2, 10**6),
-                   help="individuals N (default 300, table 1)")
-    p.add_argument("--initial-nodes", type=whole(1, 10_000),
-                   help="initial nodes S (default 50, table 1)")
     p.add_argument("--preset", choices=PRESET_NAMES, default=DEFAULT_PRESET,
                    help=preset_help().replace("%", "%%"))
-    p.add_argument("--success-rate", type=number(0.0, 1.0), dest="success_rate",
-                   metavar="RATE",
-                   help="solved means the exported FSA reaches the target on at least this "
-                   "share of fresh episodes (one-sided 95 %% lower bound; default: the "
-                   "task's, 0.95 unless it says otherwise); a number between 0 and 1")
-    p.add_argument("--tournament", type=whole(1, 10**6), help="tournament size (default 2)")
-    p.add_argument("--param-sigma", type=number(0.0, 1.0),
-                   help="standard deviation of parameter noise in [0, 1] units, from 0 to 1 "
-                   "(default 0.05)")
     p.add_argument("--seed", type=seed, default=0, help="run seed (default 0)")
     p.add_argument("--workers", type=whole(1, MAX_WORKERS), default=None,
                    help="evaluation workers, at least 1 (default: all cores for process/ray)")
@@ -119,52 +90,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="continue the run in DIR from its checkpoint")
     p.add_argument("--seed-fsa", metavar="FILE",
                    help="an FSA file placed in the first population (hand-edit, then re-evolve)")
-    p.add_argument("--trials", type=whole(1, MAX_TRIALS),
-                   help=f"episodes per evaluation, 1 to {MAX_TRIALS} (default: the task's)")
-    p.add_argument("--elitism", type=whole(0, 10**6), help="copy the best K unchanged (default 0)")
-    p.add_argument("--crn", action="store_true",
-                   help="common random numbers: a generation's individuals meet the same worlds")
-    p.add_argument("--cache", action="store_true", help="do not re-evaluate unchanged genomes")
-    p.add_argument("--cache-refresh", type=whole(0, MAX_TRIALS),
-                   help="with --cache, fresh trials added each time a genome reappears")
-    p.add_argument("--parsimony", action="store_true", help="fewer states wins at equal fitness")
-    p.add_argument("--confirm", type=whole(0, MAX_TRIALS), dest="confirm_trials",
-                   help="fresh trials that must confirm a solution before the run stops")
-    p.add_argument("--p-param", type=number(0.0, 1.0), dest="p_param",
-                   help="probability that each node of a mutated child also gets parameter "
-                        "noise (default 0, the paper; the push preset uses 1)")
-    p.add_argument("--confirm-rate", type=number(0.0, 1.0), dest="confirm_rate",
-                   help="with --confirm, the share of those trials that must each reach the "
-                        "target (default: their mean must)")
-    p.add_argument("--confirm-feedback", action="store_true", dest="confirm_feedback",
-                   help="with --confirm, a solution that fails its confirmation also takes "
-                        "that fitness in the population (and the cache), so the next "
-                        "candidate is confirmed instead of it")
-    p.add_argument("--confirm-candidates", type=whole(0, 10_000), dest="confirm_candidates",
-                   help="with --confirm, confirm up to this many genomes at the target each "
-                        "generation, the most tested first, until one passes; one that "
-                        "failed is never confirmed again (default 0: the best alone)")
-    p.add_argument("--islands", type=whole(1, 10_000),
-                   help="split the population into this many islands bred apart, with "
-                   "migration (default 1: one population); --population is the total")
-    p.add_argument("--migration-interval", type=whole(1, big), dest="migration_interval",
-                   help="generations between migrations between islands (default 10)")
-    p.add_argument("--migrants", type=whole(0, 10**6),
-                   help="best individuals each island sends its neighbours (default 2)")
-    p.add_argument("--topology", choices=TOPOLOGIES,
-                   help="who receives migrants: ring (the next island, default) or complete "
-                   "(every other island)")
-    p.add_argument("--restart-after", type=whole(0, big), dest="restart_after",
-                   help="restart an island whose best has not improved for this many "
-                   "generations, keeping its best (default 0: never)")
-    p.add_argument("--unique-children", action="store_true", dest="unique_children",
-                   help="mutate a child again until its genome is new (to the generation, "
-                   "and with --cache to the run)")
-    p.add_argument("--neutral", action="store_true",
-                   help="at equal fitness the newer genome ranks first: a child as good as "
-                   "an elite replaces it (neutral drift)")
-    p.add_argument("--checkpoint-every", type=whole(1, big),
-                   help="generations between checkpoints (10)")
     p.add_argument("--no-simplify", action="store_true",
                    help="export the best FSA as evolved, without simplification")
     p.add_argument("--simplify-trials", type=whole(1, MAX_TRIALS), default=200,
@@ -172,15 +97,52 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--check-trials", type=whole(0, MAX_TRIALS), default=200,
                    help="fresh episodes on which the exported FSA is measured at the end "
                    "(default 200; 0: none)")
-    p.add_argument("--eval-time-limit", type=number(0.0, 10.0**7), metavar="SECONDS",
-                   help="wall-clock limit of one evaluation; past it, it scores worst and "
-                   "counts as a time-out (default 60; 0: no limit)")
-    p.add_argument("--worker-max-jobs", type=whole(0, big), metavar="N",
-                   help="replace a worker after N evaluations (default 0: never)")
-    p.add_argument("--worker-max-growth-mb", type=number(0.0, 10.0**7), metavar="MB",
-                   help="replace a worker whose memory grew by more than MB (default 1024; "
-                   "0: never)")
     add_json_option(p)
+    group = p.add_argument_group(
+        "evolution settings",
+        "each overrides the preset's; a default below is EvolutionConfig's (the paper's "
+        "table 1 where it gives one), which --preset changes")
+    defaults = EvolutionConfig()
+    for s in FLAGGED:
+        _add_setting(group, s, getattr(defaults, s.name))
+
+
+def _add_setting(group: Any, s: Setting, default: Any) -> None:
+    """The option of setting ``s``: it takes what the config takes, into ``args.<name>``."""
+    options: dict[str, Any] = {"dest": s.name,
+                               "help": s.option_help(default).replace("%", "%%")}
+    if s.kind is Kind.SWITCH:
+        options["action"] = "store_true"  # given: on (the default is off, as in the config)
+    elif s.kind is Kind.CHOICE:
+        options["choices"] = s.choices
+    else:
+        options["type"] = _option_type(s)
+        options["metavar"] = s.metavar
+    group.add_argument(s.flag, **options)
+
+
+def _option_type(s: Setting) -> Callable[[str], Any]:
+    """The argparse ``type=`` of a number setting: within the setting's own bounds (and 0,
+    when the option's 0 means None)."""
+    from skillcompose.arguments import number, whole
+
+    if s.kind is Kind.WHOLE:
+        return whole(int(s.low), int(s.high))
+    finite = number(-math.inf, math.inf)
+    expected = s.expected() + (f", or 0 for {s.none}" if s.flag_zero_is_none else "") + \
+        (f" (0: {s.zero})" if s.zero else "")
+
+    def parse(text: str) -> float:
+        try:
+            value = finite(text)
+        except argparse.ArgumentTypeError:
+            value = math.nan
+        if not (s.accepts(value) or (s.flag_zero_is_none and value == 0)):
+            raise argparse.ArgumentTypeError(f"must be {expected}, got {clip(text)!r}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
 
 
 def _hold_hint(cfg: EvolutionConfig, task: Task) -> str:
@@ -198,38 +160,16 @@ def _config(args: argparse.Namespace, deterministic: bool = False) -> EvolutionC
     return EvolutionConfig(**changes)
 
 
-_SETTING_OPTIONS = (
-    ("generations", "generations"), ("max_evaluations", "max_evaluations"),
-    ("max_episodes", "max_episodes"), ("population", "population"),
-    ("initial_nodes", "initial_nodes"), ("trials", "trials"), ("elitism", "elitism"),
-    ("tournament", "tournament"), ("param_sigma", "param_sigma"),
-    ("confirm_trials", "confirm_trials"), ("confirm_rate", "confirm_rate"),
-    ("confirm_candidates", "confirm_candidates"),
-    ("p_param", "p_param"), ("islands", "islands"), ("success_rate", "success_rate"),
-    ("migration_interval", "migration_interval"), ("migrants", "migrants"),
-    ("topology", "topology"), ("restart_after", "restart_after"),
-    ("cache_refresh", "cache_refresh"), ("checkpoint_every", "checkpoint_every"),
-    ("worker_max_jobs", "worker_max_jobs"),
-    ("worker_max_growth_mb", "worker_max_growth_mb"),
-)
-_SWITCHES = (
-    ("crn", "common_random_numbers"), ("cache", "cache"), ("parsimony", "parsimony"),
-    ("unique_children", "unique_children"), ("confirm_feedback", "confirm_feedback"),
-    ("neutral", "neutral"),
-)
-"""The on/off options: (argparse name, setting); given, they turn the setting on."""
-
-
 def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The evolution settings given on the command line (not their defaults)."""
     changes: dict[str, Any] = {}
-    for opt, name in _SETTING_OPTIONS:
-        v = getattr(args, opt)
-        if v is not None:
-            changes[name] = v
-    if args.eval_time_limit is not None:
-        changes["eval_time_limit"] = args.eval_time_limit or None
-    changes.update((name, True) for opt, name in _SWITCHES if getattr(args, opt))
+    for s in FLAGGED:
+        v = getattr(args, s.name)
+        if s.kind is Kind.SWITCH:
+            if v:
+                changes[s.name] = True
+        elif v is not None:
+            changes[s.name] = None if s.flag_zero_is_none and v == 0 else v
     return changes
 
 
@@ -275,8 +215,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         differs("--check-trials", args.check_trials, record["check_trials"])
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
-    flags = {name: opt for opt, name in (*_SETTING_OPTIONS, *_SWITCHES)}
-    flags["eval_time_limit"] = "eval_time_limit"
+    flags = {s.name: s.flag for s in FLAGGED}
     for name, value in _given_settings(args).items():
         if name in FREE_SETTINGS:
             continue
@@ -285,7 +224,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
                 problems.append(f"--eval-time-limit {args.eval_time_limit:g} (the run has "
                                 f"{_limit_text(cfg.get(name))})")
             continue
-        differs("--" + flags[name].replace("_", "-"), value, cfg.get(name))
+        differs(flags[name], value, cfg.get(name))
     return problems
 
 

@@ -118,7 +118,9 @@ def test_success_rate_on_the_command_line(tmp_path: Path,
     if info["result"]["solved"]:
         assert fresh["required_rate"] == 0.9 and fresh["lower"] >= 0.9
         assert "holds at the required 90 %" in captured.out
-    assert skillcompose_main(["evolve", "examples.toy_task", "--success-rate", "1",
-                              "--quiet"]) == 2
+    with pytest.raises(SystemExit) as stopped:  # refused as it is parsed: the config's bound
+        skillcompose_main(["evolve", "examples.toy_task", "--success-rate", "1", "--quiet"])
+    assert stopped.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "success_rate = 1.0" in err[0]
+    assert len(err) == 1 and "--success-rate: must be a rate between 0 and 1 (exclusive)" \
+        in err[0]
