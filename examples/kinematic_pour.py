@@ -1,12 +1,12 @@
 """Pour water on the PR2: the hand-written pour-water FSA, unchanged, on kinematic skills.
 
 The reference FSA ``examples/pour_water_reference.fsa.yaml`` was written (and evolved FSAs
-are found) against the abstract ``"sim"`` skills of :mod:`skillcompose.skills.pour_water`. This
-task keeps
-that world, setup and fitness (:mod:`examples.pour_water`, equation (1)) and runs the same
-FSA on the ``"kinematic"`` skills of :mod:`skillcompose.skills.kinematic`: IK, joint limits and the
-table decide whether a motion succeeds, not ``p_fail``. The robot stands at the world
-origin facing +x; the table is :data:`skillcompose.skills.kinematic_world.DEFAULT_TABLE_WORLD`.
+are found) against the abstract ``"sim"`` skills of :mod:`skillcompose.skills.pour_water`.
+This task is ``examples.pour_water`` with ``backend=kinematic`` (that world, setup and
+fitness, equation (1)) under its own name: the same FSA on the ``"kinematic"`` skills of
+:mod:`skillcompose.skills.kinematic`, where IK, joint limits and the table decide whether a
+motion succeeds, not ``p_fail``. The robot stands at the world origin facing +x; the table
+is :data:`skillcompose.skills.kinematic_world.DEFAULT_TABLE_WORLD`.
 
 Run it::
 
@@ -41,19 +41,12 @@ def register(registry: Registry) -> None:
 
 
 def make_task(*, trials: int = 1, step_limit: int = 20) -> Task:
-    """The pour-water task of :mod:`examples.pour_water` on the kinematic backend: the same
-    world, fitness and terminating skill, with the kinematic skills' registry."""
-    base = pour_water_task.make_task(p_fail=0.0, trials=trials, step_limit=step_limit)
-    registry = Registry(backend="kinematic")
-    register(registry)
+    """The pour-water task of :mod:`examples.pour_water` on the kinematic backend
+    (``make_task(backend="kinematic")``: the same world, fitness and terminating skill, with
+    the kinematic skills' registry), named ``kinematic_pour``."""
+    base = pour_water_task.make_task(backend="kinematic", trials=trials, step_limit=step_limit)
     return dataclasses.replace(
-        base,
-        name="kinematic_pour",
-        registry=registry,
-        backend="kinematic",
-        skills=tuple(s.name for s in pour_water.SKILLS),
-        settings={"trials": trials, "step_limit": step_limit},
-    )
+        base, name="kinematic_pour", settings={"trials": trials, "step_limit": step_limit})
 
 
 def run_reference(runs: int, seed: int = 0) -> tuple[int, Counter[str], float]:

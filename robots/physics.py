@@ -466,7 +466,8 @@ class PhysicsWorld:
         return np.array(self.data.xpos[list(self.physics.particle_body)]).reshape(-1, 3)
 
     def particles_in(self, container: str) -> int:
-        """How many particles are inside cup ``container`` (in its inner box, up to its rim)."""
+        """How many particles are inside cup ``container`` (in its inside, up to its rim;
+        a flared cup's widens with height)."""
         obj = self.physics.scene.object(container)
         if obj.shape != "cup":
             raise InvalidConfiguration(f"particles_in: {container!r} is a {obj.shape}, "
@@ -475,7 +476,8 @@ class PhysicsWorld:
         local = (self.particle_positions() - placement.translation) @ placement.rotation
         hx, hy, hz = obj.inner_half_extents_m
         centre_z = obj.wall_m / 2
-        inside = ((np.abs(local[:, 0]) <= hx) & (np.abs(local[:, 1]) <= hy)
+        widen = math.tan(obj.flare_rad) * (local[:, 2] - (centre_z - hz))  # a flared cup's
+        inside = ((np.abs(local[:, 0]) <= hx + widen) & (np.abs(local[:, 1]) <= hy + widen)
                   & (np.abs(local[:, 2] - centre_z) <= hz))
         return int(np.count_nonzero(inside))
 

@@ -145,6 +145,11 @@ class ObjectSpec:
         friction: sliding friction coefficient (MuJoCo takes the larger of two geoms').
         wall_m: a cup's wall and bottom thickness [m].
         rgba: colour for viewers.
+        flare_rad: how far a cup's four walls lean out from vertical [rad] (0: a box;
+            ``size_m`` is then the outside at the bottom, and the mouth is wider by
+            ``2 * size_m[2] * tan(flare_rad)`` on each side). A flared cup tipped 90 degrees
+            empties, as a jug or glass does, where a box keeps a layer of particles on
+            its lowest wall.
     """
 
     name: str
@@ -154,6 +159,7 @@ class ObjectSpec:
     friction: float = 1.0
     wall_m: float = 0.006
     rgba: tuple[float, float, float, float] = (0.8, 0.4, 0.2, 1.0)
+    flare_rad: float = 0.0
 
     def __post_init__(self) -> None:
         wanted = {"box": 3, "cylinder": 2, "sphere": 1, "cup": 3}.get(self.shape)
@@ -175,10 +181,16 @@ class ObjectSpec:
             raise InvalidConfiguration(
                 f"object {self.name!r}: wall_m {self.wall_m} must be > 0 and leave room "
                 f"inside half extents {self.size_m[:2]}")
+        if not (math.isfinite(self.flare_rad) and 0.0 <= self.flare_rad <= 0.5) or (
+                self.flare_rad and self.shape != "cup"):
+            raise InvalidConfiguration(
+                f"object {self.name!r}: flare_rad must be in [0, 0.5] rad and only a cup "
+                f"flares, got {self.flare_rad} for a {self.shape}")
 
     @property
     def inner_half_extents_m(self) -> tuple[float, float, float]:
-        """A cup's inside as half extents [m], centred ``wall_m / 2`` above its centre."""
+        """A cup's inside as half extents [m], centred ``wall_m / 2`` above its centre (a
+        flared cup's at its bottom; it widens by ``tan(flare_rad)`` per metre up)."""
         hx, hy, hz = self.size_m
         return (hx - self.wall_m, hy - self.wall_m, hz - self.wall_m / 2)
 
@@ -514,6 +526,8 @@ def _add_object(world: mujoco.MjsBody, obj: ObjectSpec) -> None:
                      else mujoco.mjtGeom.mjGEOM_SPHERE)
         geom.size = (*obj.size_m, *(0.0,) * (3 - len(obj.size_m)))
         geoms = [geom]
+    elif obj.flare_rad > 0.0:
+        geoms = _flared_cup(body, obj)
     else:
         hx, hy, hz = obj.size_m
         w = obj.wall_m / 2
@@ -529,6 +543,35 @@ def _add_object(world: mujoco.MjsBody, obj: ObjectSpec) -> None:
     volumes = [_volume(g) for g in geoms]
     for geom, volume in zip(geoms, volumes, strict=True):
         geom.mass = obj.mass_kg * volume / sum(volumes)
+
+
+def _flared_cup(body: mujoco.MjsBody, obj: ObjectSpec) -> list[mujoco.MjsGeom]:
+    """A cup whose walls lean out by ``obj.flare_rad``, each about its bottom outer edge;
+    the walls are as wide as the mouth, so they overlap at the corners (one body: its geoms
+    do not collide with each other) and leave no gap there."""
+    hx, hy, hz = obj.size_m
+    w = obj.wall_m / 2
+    alpha = obj.flare_rad
+    spread = 2 * hz * math.tan(alpha)
+    length = hz / math.cos(alpha)  # half the slanted wall's length
+    geoms = [_box_geom(body, f"{obj.name}_bottom", (hx, hy, w), (0.0, 0.0, -hz + w),
+                       obj.friction, obj.rgba)]
+    for part, axis, sign in (("px", 0, 1.0), ("nx", 0, -1.0), ("py", 1, 1.0), ("ny", 1, -1.0)):
+        half = (hx, hy)[axis]
+        across = (hy, hx)[axis] + spread
+        lean = sign * alpha  # the top moves out along the wall's normal
+        out = sign * (half - w * math.cos(alpha) + length * math.sin(alpha))
+        z = -hz + w * math.sin(alpha) + length * math.cos(alpha)
+        if axis == 0:
+            size, pos = (w, across, length), (out, 0.0, z)
+            quat = (math.cos(lean / 2), 0.0, math.sin(lean / 2), 0.0)
+        else:
+            size, pos = (across, w, length), (0.0, out, z)
+            quat = (math.cos(lean / 2), -math.sin(lean / 2), 0.0, 0.0)
+        geom = _box_geom(body, f"{obj.name}_wall_{part}", size, pos, obj.friction, obj.rgba)
+        geom.quat = quat
+        geoms.append(geom)
+    return geoms
 
 
 def _volume(geom: mujoco.MjsGeom) -> float:

@@ -33,6 +33,7 @@ global random state: the same seed gives the same episode.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -64,14 +65,17 @@ from skillcompose.skills.kinematic_world import (
 __all__ = [
     "BACKEND",
     "DYNAMIC_FAILURE_REASONS",
+    "BaseRoute",
     "DynamicSkill",
     "DynamicWorld",
     "Execution",
+    "Via",
     "dynamic_twin",
     "execute",
     "in_dynamic_world",
     "judge_motion",
     "sync",
+    "world_of",
 ]
 
 BACKEND = "dynamic"
@@ -82,6 +86,7 @@ DYNAMIC_FAILURE_REASONS = (
     "dropped",  # an object left the gripper that held it
     "hit_table",  # the robot ends a motion touching the table
     "toppled",  # an object that must stand upright does not
+    "not_moved",  # a pushed object moved less than the push asks
 )
 """Values of ``last_failure_reason`` that only physics gives, besides the kinematic ones."""
 
@@ -189,28 +194,53 @@ def _arm_duration(before: Sequence[float], after: Sequence[float]) -> float:
     return max(MIN_MOTION_S, change / ARM_SPEED_RAD_S)
 
 
+BaseRoute = Callable[[Blackboard, tuple[float, float, float], tuple[float, float, float]],
+                    Sequence[tuple[float, float, float]]]
+"""A task's rule for the base's path: ``(bb, start, goal)`` -> the base poses (x [m], y [m],
+yaw [rad]) in world to drive through, the goal last (e.g. around the table)."""
+
+
+def _changed(a: float, b: float) -> bool:
+    return abs(_wrap(a - b)) > 1e-4
+
+
 def execute(world: DynamicWorld, physics: PhysicsWorld, before: RobotState,
-            after: RobotState) -> Execution:
+            after: RobotState, *, route: BaseRoute | None = None,
+            bb: Blackboard | None = None) -> Execution:
     """Move the simulated robot from where it is to the plan ``after`` (read from the
     blackboard a kinematic skill wrote), ``before`` being the robot it planned from: the base
-    first, then the torso, then each arm whose joints the plan changed; then close the
-    fingers of an arm that the plan says now holds an object, or open those of an arm it
-    says let go. Holding arms are moved before the others' grasps close."""
+    first (through ``route``'s poses when given, with ``bb``), then the torso, then each arm
+    whose joints the plan changed; then close the fingers of an arm that the plan says now
+    holds an object, or open those of an arm it says let go. Holding arms are moved before
+    the others' grasps close.
+
+    What moves is what the plan changed from ``before``, not what differs from the
+    simulation: a servo that holds a load ends a little off its goal (a wrist holding a box
+    sags a few mrad), and commanding the sagged angle again would let it sag further."""
     motions: list[tuple[str, Motion]] = []
-    bx, by, byaw = physics.base_pose()
     tx, ty, tyaw = after.base_pose_world
-    if math.hypot(tx - bx, ty - by) > 1e-4 or abs(_wrap(tyaw - byaw)) > 1e-4:
-        duration = max(MIN_MOTION_S, math.hypot(tx - bx, ty - by) / BASE_SPEED_M_S,
-                       abs(_wrap(tyaw - byaw)) / BASE_TURN_RAD_S)
-        motions.append(("base", physics.drive_base(tx, ty, tyaw, duration)))
+    sx, sy, syaw = before.base_pose_world
+    if math.hypot(tx - sx, ty - sy) > 1e-4 or _changed(tyaw, syaw):
+        start = physics.base_pose()
+        legs = list(route(bb, start, (tx, ty, tyaw))) if route is not None and bb is not None \
+            else [(tx, ty, tyaw)]
+        for k, (lx, ly, lyaw) in enumerate(legs):
+            bx, by, byaw = physics.base_pose()
+            duration = max(MIN_MOTION_S, math.hypot(lx - bx, ly - by) / BASE_SPEED_M_S,
+                           abs(_wrap(lyaw - byaw)) / BASE_TURN_RAD_S)
+            last = k == len(legs) - 1
+            motion = physics.drive_base(lx, ly, lyaw, duration,
+                                        **({} if last else {"settle_s": 0.0}))
+            if last:  # a leg on the way is not judged: the servo lags it by design
+                motions.append(("base", motion))
     torso = physics.torso_m()
-    if abs(after.torso_height_m - torso) > 1e-4:
+    if abs(after.torso_height_m - before.torso_height_m) > 1e-4:
         duration = max(MIN_MOTION_S, abs(after.torso_height_m - torso) / TORSO_SPEED_M_S)
         motions.append(("torso", physics.move_torso(after.torso_height_m, duration)))
     for arm in ARMS:
         now = physics.arm_q(arm)
         goal = after.q_arm_rad[arm]
-        if any(abs(_wrap(g - n)) > 1e-4 for g, n in zip(goal, now, strict=True)):
+        if any(_changed(g, b) for g, b in zip(goal, before.q_arm_rad[arm], strict=True)):
             motions.append((arm, physics.track_arm(arm, goal, _arm_duration(now, goal))))
     grasped: dict[Arm, str | None] = {}
     released: dict[Arm, str | None] = {}
@@ -292,17 +322,52 @@ Judge = Callable[[PhysicsWorld, Blackboard, np.random.Generator, Mapping[str, An
 """A twin's own verdict after the motion's: an outcome to return instead, or None."""
 
 
+def _let_go(physics: PhysicsWorld, bb: Blackboard, done: Execution, planned: RobotState,
+            before: RobotState, world_keys: ObjectKeys | None) -> None:
+    """After a failure: open the fingers that this skill closed on something, and write the
+    blackboard again (the robot holding what it held before)."""
+    closed = [arm for arm, got in done.grasped.items() if got is not None]
+    if not closed:
+        return
+    for arm in closed:
+        physics.open_gripper(arm)
+    held = dict(planned.held)
+    for arm in closed:
+        held[arm] = before.held[arm]
+    sync(physics, bb, planned=dataclasses.replace(planned, held=held), world_keys=world_keys)
+
+
+Via = Callable[[DynamicWorld, Blackboard, np.random.Generator, RobotState, RobotState],
+              Sequence[RobotState]]
+"""A twin's waypoints: ``(world, bb, rng, before, planned)`` -> the robots to pass through,
+in order, on the way from ``before`` to the plan (e.g. a pre-grasp pose 9 cm back along the
+approach); each holds what ``before`` holds."""
+
+
 def dynamic_twin(
     kinematic: KinematicSkill, *, world_keys: ObjectKeys | None = None,
-    judge: Judge | None = None, prepare: Judge | None = None,
+    judge: Judge | None = None, prepare: Judge | None = None, via: Via | None = None,
+    route: BaseRoute | None = None, settle_s: float = 0.0, writes: Iterable[str] = (),
 ) -> DynamicSkill:
     """The dynamic twin of ``kinematic`` (see the module docstring): plan with it, execute,
     write the blackboard from the simulation (with ``world_keys``), judge the motion
     (:func:`judge_motion`), then ``judge`` (a task's own rule, e.g. "the object moved 5 cm
     and stands"). ``prepare`` runs before the plan and may return an outcome that ends the
-    skill there (e.g. a pre-grasp approach that failed)."""
+    skill there (e.g. a pre-grasp approach that failed). ``via`` gives waypoints executed
+    before the plan (aids on the way: only the plan's own motions are judged; a skill that
+    fails after its fingers closed on something opens them again, so that a failed grasp
+    leaves nothing held, as its kinematic twin does), ``route`` the base's path
+    (:func:`execute`), and ``settle_s`` the simulated time [s] that passes after the motion
+    before the blackboard is written (e.g. 2 s for a released object to come to rest).
+    ``writes`` names world keys the twin writes beyond its kinematic twin's declaration
+    (e.g. ``holding_jug`` after a drop); ``world_keys``' values for keys the twin does not
+    declare are left alone, never written against the blackboard's access check."""
     spec = kinematic.spec
+    if writes:
+        spec = dataclasses.replace(spec, writes=spec.writes | frozenset(writes))
     name = spec.name
+    if world_keys is not None:
+        world_keys = _declared(world_keys, spec.writes)
     failure = "failure" if "failure" in spec.outcomes else None
 
     def run(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
@@ -315,7 +380,13 @@ def dynamic_twin(
         if outcome != "success":
             return str(outcome)
         planned = read_state(bb)
-        done = execute(world, physics, before, planned)
+        at = before
+        for waypoint in via(world, bb, rng, before, planned) if via is not None else ():
+            execute(world, physics, at, waypoint, route=route, bb=bb)  # aids, not judged
+            at = waypoint
+        done = execute(world, physics, at, planned, route=route, bb=bb)
+        if settle_s > 0.0:
+            physics.step(settle_s)
         now = sync(physics, bb, planned=planned, world_keys=world_keys)
         why = judge_motion(physics, bb, name, planned, done, now)
         if why is None and judge is not None:
@@ -323,10 +394,31 @@ def dynamic_twin(
             if verdict is not None:
                 return verdict
         if why is not None:
+            _let_go(physics, bb, done, planned, before, world_keys)
             return failure or str(outcome)
         return str(outcome)
 
     run.__name__ = run.__qualname__ = f"{name}_dynamic"
     run.__doc__ = (f"The dynamic twin of {name}: its kinematic plan executed and judged by "
                    f"physics.\n\n{kinematic.spec.doc or ''}")
-    return DynamicSkill(spec, run)  # the declaration is the kinematic twin's, exactly
+    return DynamicSkill(spec, run)  # the kinematic twin's declaration (and ``writes``)
+
+
+def _declared(world_keys: ObjectKeys, writes: frozenset[str]) -> ObjectKeys:
+    """``world_keys`` restricted to the keys a twin declares it writes."""
+
+    def keys(physics: PhysicsWorld, bb: Blackboard) -> Mapping[str, Any]:
+        return {k: v for k, v in world_keys(physics, bb).items() if k in writes}
+
+    return keys
+
+
+def world_of(registry: Any) -> DynamicWorld | None:
+    """The :class:`DynamicWorld` a registry's dynamic skills run in (the one a task's
+    ``register`` made), or None when it has no bound dynamic skill."""
+    for name in registry.names():
+        if BACKEND in registry.backends(name):
+            impl = registry.resolve(name, BACKEND)
+            if isinstance(impl, DynamicSkill) and isinstance(impl.world, DynamicWorld):
+                return impl.world
+    return None
