@@ -1,4 +1,4 @@
-"""Replay one kinematic run as pictures: the PR2, the table and the objects at every step.
+"""Replay one kinematic or dynamic run as pictures: the PR2, the table and the objects.
 
 ::
 
@@ -12,6 +12,13 @@ frames side by side) and ``replay.gif``. The world and the run are the ones
 ``skillcompose run FILE --task ... --trace --seed N`` prints: the first trial of seed N.
 The run is advanced one step at a time by the tick-wise executor (``CompiledFSA.start``), so
 the frames show the blackboard exactly as each step left it.
+
+On the dynamic backend (``--set backend=dynamic``) the pictures are of the simulation
+itself, every ``--every`` seconds of simulated time (default 0.25 s): the robot as its
+servos moved it and the objects as physics moved them (tipped objects drawn by their
+heading; water particles as red crosses), each titled with the simulated time and the state
+running then, so a push or a topple is visible between two steps. ``replay.gif`` plays them
+at four times real time; ``strip.png`` shows at most 16 of them, evenly spaced.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ from matplotlib.figure import Figure
 from skillcompose import RUNNING, Blackboard, load_fsa, load_task
 from skillcompose.executor import compile_fsa, trial_rngs
 from skillcompose.robots.collision import Box, Scene
-from skillcompose.robots.model import TUCKED_ARM_RAD, RobotPose, load_pr2
+from skillcompose.robots.model import TUCKED_ARM_RAD, RobotModel, RobotPose, load_pr2
 from skillcompose.robots.render import render_configuration, scene_camera
 from skillcompose.skills.kinematic_world import DEFAULT_OBJECT_HALF_EXTENTS_M, scene_world
 from skillcompose.task import parse_settings
@@ -74,15 +81,18 @@ def world_scene(bb: Blackboard) -> Scene:
 
 def replay(
     fsa_path: str | Path, task_target: str, out_dir: str | Path, *, seed: int = 0,
-    settings: Mapping[str, Any] | None = None,
+    settings: Mapping[str, Any] | None = None, every_s: float = 0.25,
 ) -> Replay:
     """Run ``fsa_path`` once on ``task_target`` (first trial of ``seed``) and draw each step
-    into ``out_dir``; see the module's docstring."""
+    (on the dynamic backend: every ``every_s`` of simulated time) into ``out_dir``; see the
+    module's docstring."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     task = load_task(task_target, **dict(settings or {}))
     compiled = compile_fsa(load_fsa(fsa_path), task.registry, task.backend)
     rng = next(iter(trial_rngs(seed, 1)))
+    if task.backend == "dynamic":
+        return _replay_dynamic(task, compiled, rng, out, every_s)
     bb = task.setup(rng)
     model = load_pr2()
     # the run first, then the pictures, all from one camera that shows every step
@@ -106,6 +116,79 @@ def replay(
                   _gif(frames, out / "replay.gif"))
 
 
+def _replay_dynamic(task: Any, compiled: Any, rng: Any, out: Path, every_s: float) -> Replay:
+    """The run on the dynamic backend, drawn from the simulation's own recording."""
+    from skillcompose.robots.physics import PoseRecorder
+    from skillcompose.skills.dynamic_world import world_of
+
+    world = world_of(task.registry)
+    if world is None:
+        raise ValueError(f"task {task.name}: its registry has no dynamic skills bound to a "
+                         "world; give a task that supports backend=dynamic")
+    recorder = PoseRecorder(every_s=every_s)
+    world.recorder = recorder
+    try:
+        bb = task.setup(rng)
+        run = compiled.start(bb, rng, trace=True)
+        steps: list[tuple[float, str]] = []  # (simulated time at its end, title)
+        status = RUNNING
+        while status == RUNNING:
+            status = run.tick()
+            trace = run.trace or ()
+            if not trace:
+                break
+            last = trace[-1]
+            ended = world.physics.time_s if world.physics is not None else 0.0
+            steps.append((ended, f"step {last.step}: {last.state} ({last.skill}) -> "
+                                 f"{last.outcome}"))
+    finally:
+        world.recorder = None
+    model = load_pr2()
+    scenes = [_recorded_scene(world, recorder, k) for k in range(len(recorder.times_s))]
+    camera = scene_camera(model, list(recorder.robot[:: max(1, len(recorder.robot) // 8)]),
+                          scenes[0][0])
+    frames = []
+    for k, (scene, particles) in enumerate(scenes):
+        t = recorder.times_s[k]
+        title = next((title for ended, title in steps if t <= ended + 1e-9), "after the run")
+        frames.append(_frame(model, recorder.robot[k], out / f"frame_{k:03d}.png", scene,
+                             particles, f"t = {t:.2f} s   {title}", camera))
+    result = run.result
+    shown = frames[:: max(1, -(-len(frames) // 16))]
+    return Replay(result.outcome, result.steps, tuple(frames), _strip(shown, out / "strip.png"),
+                  _gif(frames, out / "replay.gif", duration_ms=max(20, round(every_s * 250))))
+
+
+def _frame(model: RobotModel, pose: RobotPose, path: Path, scene: Scene, particles: Any,
+           title: str, camera: Any) -> Path:
+    return render_configuration(model, pose, path, scene=scene, title=title, camera=camera,
+                                targets_m=list(particles))
+
+
+def _recorded_scene(world: Any, recorder: Any, k: int) -> tuple[Scene, Any]:
+    """Sample ``k`` of the recording as boxes (the table, each object by its heading) and the
+    water particles' positions."""
+    import math
+
+    import numpy as np
+
+    spec = world.physics.physics.scene
+    boxes = [] if spec.table is None else [spec.table]
+    positions, quaternions = recorder.positions[k], recorder.quaternions[k]
+    for row, name in enumerate(recorder.objects):
+        obj = spec.object(name)
+        size = obj.size_m
+        half = (size[0], size[0], size[1]) if obj.shape == "cylinder" else \
+            (size[0],) * 3 if obj.shape == "sphere" else tuple(size)
+        w, x, y, z = (float(v) for v in quaternions[row])
+        yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        p = positions[row]
+        boxes.append(Box((float(p[0]), float(p[1]), float(p[2])), half, yaw, name))
+    particles = [np.asarray(positions[row]) for row, body in enumerate(recorder.bodies)
+                 if body.startswith("particle_")]
+    return Scene(tuple(boxes)), particles
+
+
 def _strip(frames: Sequence[Path], path: Path) -> Path:
     """All frames in a grid of up to four columns."""
     from matplotlib.image import imread
@@ -122,11 +205,12 @@ def _strip(frames: Sequence[Path], path: Path) -> Path:
     return path
 
 
-def _gif(frames: Sequence[Path], path: Path) -> Path:
+def _gif(frames: Sequence[Path], path: Path, duration_ms: int = 900) -> Path:
     from PIL import Image
 
     images = [Image.open(f).convert("P", palette=Image.Palette.ADAPTIVE) for f in frames]
-    images[0].save(path, save_all=True, append_images=images[1:], duration=900, loop=0)
+    images[0].save(path, save_all=True, append_images=images[1:], duration=duration_ms,
+                   loop=0)
     return path
 
 
@@ -139,13 +223,15 @@ def _parser() -> argparse.ArgumentParser:
                    help="task setting, e.g. backend=kinematic (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="the run's seed (default 0)")
     p.add_argument("--out", type=Path, required=True, help="directory for the frames")
+    p.add_argument("--every", type=float, default=0.25, metavar="SECONDS",
+                   help="dynamic backend: simulated seconds between frames (default 0.25)")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     result = replay(args.fsa, args.task, args.out, seed=args.seed,
-                    settings=parse_settings(args.set))
+                    settings=parse_settings(args.set), every_s=args.every)
     print(f"{result.outcome} after {result.steps} steps; wrote {len(result.frames)} frames, "
           f"{result.strip} and {result.gif}")
     return 0
