@@ -10,6 +10,7 @@ Evolve, then run the result on the PR2 model::
     skillcompose evolve examples.move_to_push --preset push --out runs/push
     skillcompose run runs/push/best.yaml --task examples.move_to_push --trials 1000
     skillcompose run runs/push/best.yaml --task examples.move_to_push --set backend=kinematic
+    skillcompose run runs/push/best.yaml --task examples.move_to_push --set backend=dynamic
 
 Evolve in the world drawn after the paper's text (``world`` below)::
 
@@ -20,8 +21,11 @@ Settings (``make_task(**settings)``, ``--set name=value``):
 
 - ``network`` (``layered``, default, or ``recurrent``): MoveBase's topology,
   :mod:`skillcompose.skills.network` (38 or 112 weights).
-- ``backend`` (``sim``, default, or ``kinematic``): Push judged by the reachability
-  classifier, or by the PR2 model (IK with joint limits, no collision with the table).
+- ``backend`` (``sim``, default, ``kinematic`` or ``dynamic``): Push judged by the
+  reachability classifier, by the PR2 model (IK with joint limits, no collision with the
+  table), or by physics: the PR2 in MuJoCo drives its base and pushes the object with its
+  finger tips, pushed when it moved 5 cm and stands
+  (:mod:`skillcompose.skills.move_to_push_dynamic`).
 - ``trials`` (default 10): worlds averaged per evaluation; one trial lets a random FSA that
   happens to fit one world "solve" in generation 0.
 - ``step_limit`` (default 20, the paper's).
@@ -125,7 +129,7 @@ OBJECT_HALF_EXTENTS_M = (0.03, 0.03, 0.10)
 JUDGE_MAX_DISTANCE_M = 1.5
 SOLVED_SUCCESS = 0.95
 """A mean success at least this high over an evaluation's trials counts as solved."""
-BACKENDS = ("sim", "kinematic")
+BACKENDS = ("sim", "kinematic", "dynamic")
 World = Literal["facing", "paper"]
 WORLDS: tuple[World, ...] = ("facing", "paper")
 """The ``world`` setting's choices (module docstring)."""
@@ -273,9 +277,17 @@ def make_task(
     chosen: World = "paper" if world == "paper" else "facing"
     registry = Registry(backend=backend)
     register(registry, network=network)  # type: ignore[arg-type]
+    physics: Any = None
+    if backend == "dynamic":
+        from skillcompose.skills import move_to_push_dynamic
+
+        physics = move_to_push_dynamic.register(registry, topology=network)  # type: ignore[arg-type]
 
     def draw(rng: np.random.Generator) -> Blackboard:
-        return setup(rng, judge=judge, world=chosen)
+        bb = setup(rng, judge=judge, world=chosen)
+        if physics is not None:  # the world as drawn, then the physics episode
+            move_to_push_dynamic.start_episode(physics, bb)
+        return bb
 
     return Task(
         name="move_to_push",

@@ -22,12 +22,16 @@ Evolve in the world drawn after the paper's text (``world`` below)::
 
 Settings (``make_task(**settings)``, ``--set name=value``):
 
-- ``backend`` (``sim``, default, or ``kinematic``): GraspParam, MoveGripperToStack,
-  OpenGripper and MoveToReach's MoveBase and Push computed on the PR2 model (IK, box
-  collisions) instead of the reachability classifier.
-- ``p_fail`` (default 0.3 on ``sim``, the paper's; 0 on ``kinematic``, whose skills fail for
-  kinematic reasons): probability of a random ``failure`` of GraspParam, MoveToReach and
-  MoveGripperToStack (MoveToReach's on both backends, the others' on ``sim``).
+- ``backend`` (``sim``, default, ``kinematic`` or ``dynamic``): GraspParam,
+  MoveGripperToStack, OpenGripper and MoveToReach's MoveBase and Push computed on the PR2
+  model (IK, box collisions) instead of the reachability classifier; with ``dynamic`` the
+  kinematic plans are executed by the PR2 in MuJoCo (fingers that hold by friction, objects
+  that fall and topple) and CheckSuccess judges the simulated objects 2 s after the release
+  (:mod:`skillcompose.skills.stacking_dynamic`).
+- ``p_fail`` (default 0.3 on ``sim``, the paper's; 0 on ``kinematic`` and ``dynamic``,
+  whose skills fail for kinematic and physical reasons): probability of a random
+  ``failure`` of GraspParam, MoveToReach and MoveGripperToStack (MoveToReach's on every
+  backend, the others' on ``sim``).
 - ``trials`` (default 3): worlds averaged per evaluation.
 - ``step_limit`` (default 15, the paper's).
 - ``move_to_reach``: the MoveToReach FSA file (default ``examples/move_to_reach.fsa.yaml``
@@ -169,8 +173,8 @@ START_DISTANCE_M = 2.0
 HEADING_NOISE_RAD = math.radians(15.0)
 NO_GRASP_FITNESS = 50.0
 """Equation (2)'s score when no object was ever in a gripper."""
-DEFAULT_P_FAIL = {"sim": 0.3, "kinematic": 0.0}
-BACKENDS = ("sim", "kinematic")
+DEFAULT_P_FAIL = {"sim": 0.3, "kinematic": 0.0, "dynamic": 0.0}
+BACKENDS = ("sim", "kinematic", "dynamic")
 World = Literal["facing", "paper"]
 WORLDS: tuple[World, ...] = ("facing", "paper")
 """The ``world`` setting's choices (module docstring)."""
@@ -440,12 +444,24 @@ def make_task(
                         f"{list(WORLDS)}, e.g. world=paper")
     chosen: World = "paper" if world == "paper" else "facing"
     registry = Registry(backend=backend)
-    register(registry, move_to_reach=reach_file, network=network,  # type: ignore[arg-type]
-             kinematic=backend == "kinematic", shortcut=chosen != "paper")
+    physics: Any = None
+    if backend == "dynamic":
+        from skillcompose.skills import stacking_dynamic
+
+        skills_stacking.register(registry, kinematic=False)
+        physics = stacking_dynamic.register(
+            registry, move_to_reach=reach_file, topology=network,  # type: ignore[arg-type]
+            shortcut=chosen != "paper")
+    else:
+        register(registry, move_to_reach=reach_file, network=network,  # type: ignore[arg-type]
+                 kinematic=backend == "kinematic", shortcut=chosen != "paper")
     p = float(p_fail)
 
     def draw(rng: np.random.Generator) -> Blackboard:
-        return setup(rng, p_fail=p, world=chosen)
+        bb = setup(rng, p_fail=p, world=chosen)
+        if physics is not None:  # the world as drawn, then the physics episode
+            stacking_dynamic.start_episode(physics, bb)
+        return bb
 
     settings: dict[str, Any] = {"backend": backend, "p_fail": p, "trials": trials,
                                 "step_limit": step_limit, "network": network, "world": world}

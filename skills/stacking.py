@@ -370,12 +370,12 @@ def _carry(bb: Blackboard, holding: tuple[Arm, str], position_before: Vec3,
 
 def make_move_to_reach(
     path: str | Path, *, topology: Topology = "layered", kinematic: bool = True,
-    shortcut: bool = True,
+    shortcut: bool = True, registry: Registry | None = None,
 ) -> MoveToReach:
     """MoveToReach from an evolved move-to-push FSA file (``examples/move_to_reach.fsa.yaml``):
-    validated against :func:`reach_registry` when loaded; its ``timeout`` becomes
-    ``failure``. ``shortcut``: succeed without moving when the target is already in reach
-    (:class:`MoveToReach`)."""
+    validated against :func:`reach_registry` (or ``registry``, e.g. one with the dynamic
+    twins too) when loaded; its ``timeout`` becomes ``failure``. ``shortcut``: succeed
+    without moving when the target is already in reach (:class:`MoveToReach`)."""
     machine = load_fsa(path)
     if sorted(machine.terminals) != ["failure", "success"]:  # else renamed ends go unseen
         at = machine.source.at("terminals") if machine.source is not None else ""
@@ -384,7 +384,8 @@ def make_move_to_reach(
             f"it), but this FSA's terminals are {list(machine.terminals)}; set `terminals: "
             "[success, failure]` and route its states' outcomes to them"
         )
-    nested = fsa_skill(machine, reach_registry(topology, kinematic=kinematic),
+    nested = fsa_skill(machine, registry if registry is not None else
+                       reach_registry(topology, kinematic=kinematic),
                        name="MoveToReach", on_timeout="failure")
     return MoveToReach(nested, shortcut=shortcut)
 

@@ -1,0 +1,266 @@
+"""Stacking (section 4.3) on the ``dynamic`` backend: the PR2 in MuJoCo.
+
+The twins of the kinematic GraspParam, MoveGripperToStack and OpenGripper
+(:mod:`skillcompose.skills.kinematic`), of CheckSuccess and of MoveToReach, with their
+names, parameters, outcomes and blackboard keys; RecogniseObject is the shared one of
+:mod:`skillcompose.skills.stacking`. They run in a
+:class:`~skillcompose.skills.dynamic_world.DynamicWorld` whose episode the task's setup
+starts (:func:`start_episode`: the table of ``table_world`` and both objects, boxes of
+``object_half_extents_m``, :data:`OBJECT_MASS_KG` each with friction
+:data:`OBJECT_FRICTION`, standing upright at ``object_positions_world``). Each plan is the
+kinematic twin's; the motion is physics' (:func:`~skillcompose.skills.dynamic_world.dynamic_twin`),
+and the blackboard's object positions are written from the simulation after every skill.
+
+- ``GraspParam(which)``: a tucked arm first unfolds (above the table, so that the IK starts
+  from there); the kinematic twin plans the grasp (side, else top); the arm passes a
+  pre-grasp pose :data:`PRE_GRASP_M` back along the approach (and one above that), so the
+  open fingers come straight onto the object, then the fingers close and hold it by
+  friction. ``failure``: the kinematic reasons, ``missed`` (the fingers closed on nothing or
+  on the other object), ``blocked`` (a motion did not reach its goal), ``hit_table``.
+- ``MoveGripperToStack(which, dx, dy, dz)``: the kinematic plan, reached by lifting the
+  gripper :data:`LIFT_M` straight up, then to :data:`LIFT_M` above the goal, then down.
+  ``failure``: the kinematic reasons, ``dropped`` (the held object left the fingers),
+  ``blocked``, ``hit_table``.
+- ``OpenGripper``: the fingers open; the released object falls and settles for
+  :data:`REST_S` (2 s) before the blackboard is written. Always ``success``.
+- ``CheckSuccess``: **stacked** (``success``) when neither object is held and one rests on
+  the other as simulated, 2 s after the release: both upright (z axes within 20° of
+  vertical), the top one's bottom within 1 cm of the other's top and its centre over the
+  other's top face (:func:`skillcompose.skills.stacking.stacked` on the simulated poses);
+  else ``failure``.
+- ``MoveToReach``: the nested move-to-push FSA of :mod:`skillcompose.skills.stacking` on the
+  dynamic MoveBase (:mod:`skillcompose.skills.move_to_push_dynamic`: the base drives, a held
+  object rides in the gripper) and its Push check by IK (moving nothing).
+
+What physics produces (a slip, a topple, a collision with the table) ends as an outcome with
+``last_failure_reason``, never as an error; the same seed gives the same episode.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pinocchio as pin
+
+from skillcompose import Blackboard, Registry
+from skillcompose.robots.model import ARMS, Arm
+from skillcompose.robots.physics import PhysicsWorld
+from skillcompose.robots.physics_model import ObjectSpec, SceneSpec
+from skillcompose.skills import kinematic as skills_kinematic
+from skillcompose.skills import stacking as skills_stacking
+from skillcompose.skills import stacking_kinematic
+from skillcompose.skills.dynamic_world import (
+    DynamicSkill,
+    DynamicWorld,
+    dynamic_twin,
+    in_dynamic_world,
+    sync,
+)
+from skillcompose.skills.kinematic_world import (
+    TABLE_KEY,
+    TOOL_KEYS,
+    RobotState,
+    reach,
+    read_state,
+    scene_world,
+)
+from skillcompose.skills.move_to_push_dynamic import (
+    base_route,
+    make_move_base,
+    object_keys,
+    unfold,
+    unfolded,
+)
+from skillcompose.skills.network import Topology
+from skillcompose.skills.stacking_world import DEFAULT_HALF_EXTENTS_M, held, stacked
+
+__all__ = [
+    "LIFT_M",
+    "OBJECT_FRICTION",
+    "OBJECT_MASS_KG",
+    "PRE_GRASP_M",
+    "REST_S",
+    "check_success",
+    "grasp_param",
+    "move_gripper_to_stack",
+    "open_gripper",
+    "register",
+    "scene_of",
+    "start_episode",
+]
+
+OBJECT_MASS_KG = 0.2
+"""Each stacking object's mass [kg]."""
+OBJECT_FRICTION = 0.5
+"""Each stacking object's sliding friction (on the table and on each other; the finger pads
+have their own, 1.5)."""
+PRE_GRASP_M = 0.09
+"""A grasp passes a pose this far back along the approach (the tool's x axis) [m]."""
+LIFT_M = 0.10
+"""MoveGripperToStack lifts the gripper this far before it moves, and comes down this far
+onto its goal [m]."""
+NEAR_RAD = 0.8
+"""A waypoint is this close to the next in every joint [rad], at most."""
+REST_S = 2.0
+"""Simulated time a released object is given to come to rest [s]."""
+
+
+# -- the episode -------------------------------------------------------------------------------
+def scene_of(bb: Blackboard) -> SceneSpec:
+    """The physics scene of a stacking blackboard: its ``table_world`` and both objects."""
+    sizes: Mapping[str, Sequence[float]] = bb.get("object_half_extents_m") or {}
+    objects = tuple(
+        ObjectSpec(str(name), "box",
+                   tuple(float(v) for v in sizes.get(name, DEFAULT_HALF_EXTENTS_M)),
+                   OBJECT_MASS_KG, OBJECT_FRICTION,
+                   rgba=(0.8, 0.4, 0.2, 1.0) if k == 0 else (0.2, 0.5, 0.8, 1.0))
+        for k, name in enumerate(bb["object_positions_world"]))
+    return SceneSpec(table=bb.get(TABLE_KEY), objects=objects)
+
+
+def start_episode(world: DynamicWorld, bb: Blackboard) -> PhysicsWorld:
+    """Start ``bb``'s physics episode in ``world``: the robot as ``bb`` says, both objects
+    upright at ``object_positions_world``."""
+    poses = {str(n): tuple(float(v) for v in p) for n, p in bb["object_positions_world"].items()}
+    return world.start(bb, scene_of(bb), object_poses=poses)
+
+
+# -- waypoints ---------------------------------------------------------------------------------
+def _tool(bb: Blackboard, arm: str) -> pin.SE3:
+    x, y, z, roll, pitch, yaw = bb[TOOL_KEYS[arm]]  # type: ignore[index]
+    return pin.SE3(np.asarray(pin.rpy.rpyToMatrix(roll, pitch, yaw)), np.array([x, y, z]))
+
+
+def _moved_arm(before: RobotState, planned: RobotState) -> Arm | None:
+    for arm in ARMS:
+        if planned.q_arm_rad[arm] != before.q_arm_rad[arm]:
+            return arm
+    return None
+
+
+def _near(world: DynamicWorld, state: RobotState, arm: str, target: pin.SE3, bb: Blackboard,
+          rng: np.random.Generator) -> RobotState | None:
+    """IK of ``arm`` to ``target`` warm-started from ``state`` without restarts, torso
+    fixed, and within :data:`NEAR_RAD` of it in every joint (so that the servo's straight
+    line in joint space stays near the tool's); None when there is none."""
+    answer = reach(world.kinematic, state, arm, target, scene_world(bb), rng,  # type: ignore[arg-type]
+                   move_torso=False, diagnose=False, restarts=0)
+    if answer.state is None or max(
+            abs(a - b) for a, b in zip(answer.state.q_arm_rad[arm], state.q_arm_rad[arm],  # type: ignore[index]
+                                       strict=True)) > NEAR_RAD:
+        return None
+    return RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
+                      answer.state.q_arm_rad, state.held, state.arm_in_use)
+
+
+def _grasp_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+               before: RobotState, planned: RobotState) -> Sequence[RobotState]:
+    """GraspParam's waypoints: :data:`PRE_GRASP_M` back along the approach, and
+    :data:`LIFT_M` above that, each near the next in joint space."""
+    arm = _moved_arm(before, planned)
+    if arm is None:
+        return ()
+    grasp = _tool(bb, arm)
+    back = grasp.translation - PRE_GRASP_M * grasp.rotation[:, 0]
+    keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
+                      before.held, planned.arm_in_use)
+    pre = _near(world, keep, arm, pin.SE3(grasp.rotation, back), bb, rng)
+    if pre is None:
+        return ()
+    up = np.array([0.0, 0.0, LIFT_M])
+    high = _near(world, pre, arm, pin.SE3(grasp.rotation, back + up), bb, rng)
+    return (high, pre) if high is not None else (pre,)
+
+
+def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+               before: RobotState, planned: RobotState) -> Sequence[RobotState]:
+    """MoveGripperToStack's waypoints: the gripper :data:`LIFT_M` up from where it is, then
+    :data:`LIFT_M` above the goal."""
+    arm = _moved_arm(before, planned)
+    if arm is None:
+        return ()
+    goal = _tool(bb, arm)
+    now = world.kinematic.transform_tool_to_robot(arm, before.torso_height_m,
+                                                  before.q_arm_rad[arm])
+    x, y, yaw = before.base_pose_world
+    start = pin.SE3(np.asarray(pin.rpy.rpyToMatrix(0.0, 0.0, yaw)), np.array([x, y, 0.0])) * now
+    up = np.array([0.0, 0.0, LIFT_M])
+    keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
+                      before.held, planned.arm_in_use)
+    above = _near(world, keep, arm, pin.SE3(goal.rotation, goal.translation + up), bb, rng)
+    lift_from = RobotState(before.base_pose_world, planned.torso_height_m, before.q_arm_rad,
+                           before.held, before.arm_in_use)
+    lifted = _near(world, lift_from, arm, pin.SE3(start.rotation, start.translation + up), bb,
+                   rng)
+    return tuple(s for s in (lifted, above) if s is not None)
+
+
+def _unfold(physics: PhysicsWorld, bb: Blackboard, rng: np.random.Generator,
+            params: Mapping[str, Any]) -> str | None:
+    """Before GraspParam plans: the tucked arms unfold above the table
+    (:func:`~skillcompose.skills.move_to_push_dynamic.unfold`), so that its IK starts there."""
+    state = read_state(bb)
+    if unfolded(state, ARMS) != state:
+        unfold(physics, state, ARMS)
+        sync(physics, bb, planned=state, world_keys=object_keys)
+    return None
+
+
+# -- the skills --------------------------------------------------------------------------------
+grasp_param = dynamic_twin(skills_kinematic.grasp_param, world_keys=object_keys,
+                           prepare=_unfold, via=_grasp_via, route=base_route)
+"""The dynamic GraspParam (module docstring)."""
+move_gripper_to_stack = dynamic_twin(skills_kinematic.move_gripper_to_stack,
+                                     world_keys=object_keys, via=_stack_via, route=base_route)
+"""The dynamic MoveGripperToStack (module docstring)."""
+open_gripper = dynamic_twin(skills_kinematic.open_gripper, world_keys=object_keys,
+                            settle_s=REST_S)
+"""The dynamic OpenGripper (module docstring)."""
+
+
+def _check_success(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator
+                   ) -> Literal["success", "failure"]:
+    physics = world.current(bb, "CheckSuccess")
+    names = list(bb["object_positions_world"])
+    if held(bb) is not None or not all(physics.upright(str(n)) for n in names):
+        return "failure"
+    return "success" if stacked(bb) else "failure"
+
+
+check_success = DynamicSkill(skills_stacking.check_success.spec, _check_success)
+"""The dynamic CheckSuccess (module docstring): the blackboard's positions are the
+simulation's, and both objects must stand upright."""
+
+
+def _reach_check(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator) -> str:
+    return str(stacking_kinematic.reach_check.impl(world.kinematic, bb, rng))
+
+
+reach_check = DynamicSkill(stacking_kinematic.reach_check.spec, _reach_check)
+"""MoveToReach's Push on the dynamic backend: the kinematic check (IK, moving nothing) on the
+simulated robot."""
+
+
+def register(registry: Registry, *, move_to_reach: str | Path | None = None,
+             topology: Topology = "layered", shortcut: bool = True,
+             world: DynamicWorld | None = None) -> DynamicWorld:
+    """Add the dynamic GraspParam, MoveGripperToStack, OpenGripper and CheckSuccess and, given
+    its file, MoveToReach (on the dynamic MoveBase) to ``registry``, running in ``world``
+    (default: a new one); return the world, whose episodes the task starts
+    (:func:`start_episode`)."""
+    world = world or DynamicWorld()
+    for s in in_dynamic_world((grasp_param, move_gripper_to_stack, open_gripper,
+                               check_success), world):
+        registry.add(s)
+    if move_to_reach is not None:
+        nested = skills_stacking.reach_registry(topology, kinematic=False)
+        for s in in_dynamic_world((make_move_base(topology), reach_check), world):
+            nested.add(s)
+        nested.backend = "dynamic"
+        registry.add(skills_stacking.make_move_to_reach(
+            move_to_reach, topology=topology, shortcut=shortcut, registry=nested),
+            backend="dynamic")
+    return world
