@@ -331,6 +331,7 @@ def _episode_view(ep: Episode) -> None:
                            on_change=lambda e: show(int(e.value))).classes("w-64")
         step_label = ui.label("").classes("text-base").props("data-testid=step-label")
     active_label = ui.label("").classes("hidden").props("data-testid=active-state")
+    within = _substep_controls(ep)
     robot: Callable[[Mapping[str, Any] | None], None] | None = None
     with ui.row().classes("w-full no-wrap gap-6 items-start"):
         with ui.column().classes("w-2/5" if ep.kinematic else "w-1/2"):
@@ -369,8 +370,45 @@ def _episode_view(ep: Episode) -> None:
             b.set_enabled(on)
         if robot is not None:
             robot(f.robot)
+        if within is not None and robot is not None:
+            within(f.substeps, robot)
 
     show(0)
+
+
+def _substep_controls(ep: Episode) -> Callable[[Any, Any], None] | None:
+    """On a dynamic episode, a slider through the simulation's samples within the step shown
+    (every ``SUBSTEP_S`` of simulated time); returns the function that loads a step's."""
+    if not any(f.substeps for f in ep.frames):
+        return None
+    current: dict[str, Any] = {"substeps": (), "robot": None}
+    with ui.row().classes("items-center gap-2 w-full"):
+        ui.label("within the step (simulated time)").classes("text-sm")
+        slider = ui.slider(min=0, max=1, value=0, on_change=lambda e: pick(int(e.value))) \
+            .classes("w-64").props("data-testid=substep")
+        label = ui.label("").classes("text-sm").props("data-testid=substep-label")
+
+    def pick(j: int) -> None:
+        subs, robot = current["substeps"], current["robot"]
+        if not subs or robot is None:
+            label.text = "no motion in this step"
+            return
+        j = max(0, min(len(subs) - 1, j))
+        t, frame = subs[j]
+        label.text = f"t = {t:.2f} s ({j + 1} of {len(subs)})"
+        robot(frame)
+
+    def load(substeps: Any, robot: Any) -> None:
+        current["substeps"], current["robot"] = substeps, robot
+        last = max(len(substeps) - 1, 0)
+        slider.props(f"max={max(last, 1)}")
+        slider.set_enabled(bool(substeps))
+        if slider.value != last:
+            slider.value = last  # its on_change shows the step's end
+        else:
+            pick(last)
+
+    return load
 
 
 def _step_tables(half: bool = False) -> tuple[Any, Any]:
@@ -419,7 +457,8 @@ def _robot_scene(ep: Episode) -> Callable[[Mapping[str, Any] | None], None]:
         for b in frame["boxes"]:
             if b.name not in boxes:
                 with scene:
-                    colour = "#a16207" if "table" in b.name else "#16a34a"
+                    colour = "#a16207" if "table" in b.name else \
+                        "#2563eb" if b.name.startswith("particle_") else "#16a34a"
                     boxes[b.name] = scene.box(b.size[0], b.size[1], b.size[2]) \
                         .material(colour, opacity=0.85).with_name(f"box:{b.name}")
             boxes[b.name].move(*b.centre).rotate(0.0, 0.0, b.yaw)

@@ -11,6 +11,7 @@ from
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,10 +20,11 @@ import numpy as np
 import pinocchio as pin
 
 from skillcompose import Blackboard
-from skillcompose.robots.model import load_pr2
+from skillcompose.robots.collision import Box, Scene
+from skillcompose.robots.model import RobotPose, load_pr2
 from skillcompose.skills.replay import robot_pose, world_scene
 
-__all__ = ["Piece", "WorldBox", "frame", "mesh_root", "pieces"]
+__all__ = ["PARTICLE_SIZE_M", "Piece", "WorldBox", "frame", "frame_at", "mesh_root", "pieces"]
 
 _X90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # y-axis → z-axis
 
@@ -99,11 +101,40 @@ def pieces() -> tuple[Piece, ...]:
 def frame(bb: Blackboard) -> dict[str, Any]:
     """Where every piece of :func:`pieces` is (``poses``: position [m] and 3×3 rotation) for
     the robot on ``bb``, and the world's boxes (``boxes``)."""
+    boxes = [_world_box(b) for b in world_scene(bb).boxes]
+    for key, value in sorted(bb.to_dict().items()):  # the jug, the glass: points, no size
+        name = key.removesuffix("_position_world")
+        if (key.endswith("_position_world") and name not in ("gripper", "object")
+                and isinstance(value, (tuple, list)) and len(value) == 3):
+            boxes.append(WorldBox(name, (float(value[0]), float(value[1]),
+                                         float(value[2]) - 0.06), (0.07, 0.07, 0.12), 0.0))
+    return {"poses": _poses(robot_pose(bb)), "boxes": boxes}
+
+
+PARTICLE_SIZE_M = 0.014
+"""Edge of the cube a water particle is drawn as [m]."""
+
+
+def frame_at(pose: RobotPose, scene: Scene, particles: Sequence[Any] = ()) -> dict[str, Any]:
+    """:func:`frame` for a robot ``pose`` and a ``scene`` given directly (a sample of a
+    dynamic episode's recording), each water particle a small cube named ``particle_<i>``."""
+    boxes = [_world_box(b) for b in scene.boxes]
+    boxes += [WorldBox(f"particle_{i}", (float(p[0]), float(p[1]), float(p[2])),
+                       (PARTICLE_SIZE_M,) * 3, 0.0) for i, p in enumerate(particles)]
+    return {"poses": _poses(pose), "boxes": boxes}
+
+
+def _world_box(b: Box) -> WorldBox:
+    return WorldBox(b.name, (float(b.center_m[0]), float(b.center_m[1]), float(b.center_m[2])),
+                    tuple(2.0 * float(h) for h in b.half_extents_m),  # type: ignore[arg-type]
+                    float(b.yaw_rad))
+
+
+def _poses(pose: RobotPose) -> list[tuple[tuple[float, ...], list[list[float]]]]:
     model, geom = _geometry()
     data = model.full_model.createData()
     gdata = pin.GeometryData(geom)
-    q = model.full_q(robot_pose(bb))
-    pin.forwardKinematics(model.full_model, data, q)
+    pin.forwardKinematics(model.full_model, data, model.full_q(pose))
     pin.updateGeometryPlacements(model.full_model, data, geom, gdata)
     by_name = {g.name: k for k, g in enumerate(geom.geometryObjects)}
     poses = []
@@ -114,13 +145,4 @@ def frame(bb: Blackboard) -> dict[str, Any]:
             rot = rot @ _X90  # three.js cylinders stand along y, coal's along z
         poses.append((tuple(round(float(v), 5) for v in placement.translation),
                       [[round(float(v), 6) for v in row] for row in rot]))
-    boxes = [WorldBox(b.name, (float(b.center_m[0]), float(b.center_m[1]), float(b.center_m[2])),
-                      tuple(2.0 * float(h) for h in b.half_extents_m), float(b.yaw_rad))  # type: ignore[arg-type]
-             for b in world_scene(bb).boxes]
-    for key, value in sorted(bb.to_dict().items()):  # the jug, the glass: points, no size
-        name = key.removesuffix("_position_world")
-        if (key.endswith("_position_world") and name not in ("gripper", "object")
-                and isinstance(value, (tuple, list)) and len(value) == 3):
-            boxes.append(WorldBox(name, (float(value[0]), float(value[1]),
-                                         float(value[2]) - 0.06), (0.07, 0.07, 0.12), 0.0))
-    return {"poses": poses, "boxes": boxes}
+    return poses

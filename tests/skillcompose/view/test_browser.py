@@ -315,3 +315,31 @@ def test_replay_shows_the_pr2_with_its_meshes(viewer: Viewer, runs_dir: Path,
     page.page.wait_for_timeout(1000)
     assert page.page.locator("[data-testid=robot-scene] canvas").count() >= 1
     assert page.errors == []
+
+
+@pytest.mark.kinematics
+@pytest.mark.physics
+def test_a_dynamic_replay_steps_through_the_simulation(viewer: Viewer, runs_dir: Path,
+                                                        page: Page) -> None:
+    page.goto(viewer.url + "/replay?" + urlencode({
+        "path": str(runs_dir / "pour.fsa.yaml"), "task": "examples.pour_water",
+        "settings": "backend=dynamic"}))
+    wait_for(lambda: page.page.get_by_test_id("robot-scene").count() == 1, timeout=120,
+             what="the scene of the simulated pour")
+    summary = page.page.get_by_test_id("episode-summary").inner_text()
+    assert "backend dynamic" in summary and "success after 6 step(s)" in summary
+    label = page.page.get_by_test_id("substep-label")
+    page.page.get_by_test_id("forward").click()  # step 1: RecogniseObject moves nothing
+    page.page.get_by_test_id("forward").click()  # step 2: the arm moves to the jug
+    wait_for(lambda: "t = " in label.inner_text(), what="the sub-step label of step 2")
+    end = label.inner_text()  # the step's last sample: "t = T s (n of n)"
+    n = int(end.rsplit(" of ", 1)[1].rstrip(")"))
+    assert n > 4, end  # a motion of seconds, sampled every 0.25 s
+    slider = page.page.get_by_test_id("substep")
+    box = slider.bounding_box()
+    assert box is not None
+    page.page.mouse.click(box["x"] + 1, box["y"] + box["height"] / 2)  # its left end
+    wait_for(lambda: label.inner_text().endswith(f"(1 of {n})"), what="the first sample")
+    first_t = float(label.inner_text().split()[2])
+    assert first_t < float(end.split()[2])
+    assert page.errors == []
