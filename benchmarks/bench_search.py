@@ -8,6 +8,16 @@ runs that many at once. Every number in ``docs/results/search.md`` comes from th
     python benchmarks/bench_search.py --full             # adds move to push (hours)
     python benchmarks/bench_search.py --quick --out /tmp/s   # a smoke test (seconds)
 
+Issue 31 adds the same tasks written two ways (``benchmarks/tasks/forms.py``: actions that
+report the sensor, or a sensing skill apart from actions), Koza's lawnmower, Tartarus and a
+noisy docking robot, each setting given the same budget in individuals; the tasks and seeds
+held out from all tuning are data here (:data:`HELD_OUT_TASKS`, :data:`HELD_OUT_FROM_SEED`)
+and every page says which they are. ``--config NAME`` also measures the tuning candidates
+(:data:`CANDIDATES`) on those tasks::
+
+    python benchmarks/bench_search.py --workers 1 --only 'Santa Fe trail, sensing' \
+        --config default --config 'deterministic + neutral'
+
 Koza's computational effort (Genetic Programming, 1992, chapter 8): with ``P(M, i)`` the
 share of runs of population ``M`` solved by generation ``i``, ``I(M, i, z) = M (i + 1)
 ceil(ln(1 - z) / ln(1 - P(M, i)))`` individuals must be processed to solve the task with
@@ -42,7 +52,14 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # the task modules under benchmarks/tasks, run from anywhere
     sys.path.insert(0, str(ROOT))
 
-from skillcompose.evolve import PRESETS, EvolutionConfig, check_fresh, evolve, simplify  # noqa: E402
+from skillcompose.evolve import (  # noqa: E402
+    PRESETS,
+    EvolutionConfig,
+    check_fresh,
+    evolve,
+    preset_settings,
+    simplify,
+)
 from skillcompose.task import load_task  # noqa: E402
 
 Z = 0.99  # Koza's probability of success
@@ -62,6 +79,9 @@ class Bench:
     published: tuple[tuple[str, str, str], ...] = ()  # (method, effort, source and status)
     fresh: int = 0  # fresh episodes on which each exported FSA is checked (noisy tasks)
     full_only: bool = False
+    individuals: int = 0  # when set: each setting's budget, generations = this // M
+    other_form: str = ""  # the benchmark of the same task in its other representation
+    candidates: tuple[str, ...] = ()  # more settings, measured only when --config names them
 
 
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -88,6 +108,18 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "deterministic + neutral": {**PRESETS["deterministic"], "neutral": True},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
+    # candidates for one default that adapts (issue 31), made of the options there are
+    "deterministic + neutral + restarts": {**PRESETS["deterministic"], "neutral": True,
+                                           "restart_after": 50},
+    "deterministic M 100 + neutral": {**PRESETS["deterministic"], "population": 100,
+                                      "neutral": True},
+    "deterministic M 100 + neutral + restarts": {
+        **PRESETS["deterministic"], "population": 100, "neutral": True, "restart_after": 30},
+    "islands + cache + neutral": {**PRESETS["islands"], "cache": True, "neutral": True},
+    "islands + cache + neutral + restarts": {**PRESETS["islands"], "cache": True,
+                                             "neutral": True, "restart_after": 20},
+    "robust + cache + unique + neutral": {**PRESETS["robust"], "cache": True,
+                                          "unique_children": True, "neutral": True},
 }
 """The settings compared: the head's presets, the island preset (with the cache on the
 deterministic tasks, where a genome's fitness never changes) and the preset for deterministic
@@ -98,11 +130,55 @@ tasks; between them, what each mechanism adds on its own."""
 # the report stays what this script writes (docs/results/solved.md measures the new one)
 CONFIGS = {name: {**settings, "require_holds": False} for name, settings in CONFIGS.items()}
 
+DEFAULT = "default"
+"""The settings ``skillcompose evolve`` takes without ``--preset``: the head's
+``preset_settings("default", ...)`` for the task (deterministic or not), with "solved" as the
+other settings here count it."""
+
+
 DETERMINISTIC = ("paper", "robust", "robust + cache", "robust + cache + unique",
                  "islands + cache", "deterministic")
 NEW = ("islands + cache", "deterministic", "deterministic + neutral")
 """The settings measured against the issue's targets (the head's are ``paper`` and
 ``robust``)."""
+
+SANTA_FE_PUBLISHED = (
+    ("genetic programming (Koza 1992), population 500", "450,000",
+     "Koza, Genetic Programming (1992), chapter 7, as cited throughout the GP "
+     "literature; not read here"),
+    ("FSA by evolutionary programming, 'Solving the artificial ant on the Santa Fe "
+     "trail problem in 20,696 fitness evaluations' (Christensen and Oppacher, GECCO "
+     "2007)", "20,696", "the paper's title; its setting (time steps) not read here"),
+)
+
+FORMS = {
+    "reporting": "every action reports the sensor after it (Jefferson's Tracker ant)",
+    "sensing": "a sensing skill (yes / no, no time step) separate from actions that only "
+               "report `done`; the world counts the actions and ends the run at its budget "
+               "(Koza's ant)",
+}
+ISSUE_31 = (DEFAULT, "deterministic + neutral", "robust + cache + unique", "islands + cache")
+"""The settings measured on every task of issue 31: the default, and the presets and
+combinations that did best on the classic benchmarks."""
+CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neutral + restarts",
+              "deterministic M 100 + neutral", "deterministic M 100 + neutral + restarts",
+              "islands + cache + neutral", "islands + cache + neutral + restarts",
+              "islands + cache + restarts", "robust + cache + unique + neutral", "paper")
+"""More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
+options give, for whoever turns the best into a default that adapts."""
+
+
+def _pair(name: str, module: str, settings: dict[str, Any], individuals: int,
+          budgets: tuple[int, ...], about: str,
+          published: tuple[tuple[str, str, str], ...] = ()) -> tuple[Bench, Bench]:
+    """A deterministic task in both representations, with the same settings and budget."""
+    return tuple(  # type: ignore[return-value]
+        Bench(f"{name}, {form}", module, {**settings, "form": form}, 0, budgets, ISSUE_31,
+              f"{about} Representation: {form}: {FORMS[form]}.", published,
+              individuals=individuals, other_form=f"{name}, {other}",
+              candidates=CANDIDATES)
+        for form, other in (("reporting", "sensing"), ("sensing", "reporting")))
+
 
 BENCHES = (
     Bench(
@@ -110,13 +186,12 @@ BENCHES = (
         (20_000, 60_000), (*DETERMINISTIC, "deterministic + neutral"),
         "Koza's Santa Fe trail: 32 x 32 torus, 89 pellets, 600 time steps; solved when all "
         "89 are eaten.",
-        (("genetic programming (Koza 1992), population 500", "450,000",
-          "Koza, Genetic Programming (1992), chapter 7, as cited throughout the GP "
-          "literature; not read here"),
-         ("FSA by evolutionary programming, 'Solving the artificial ant on the Santa Fe "
-          "trail problem in 20,696 fitness evaluations' (Christensen and Oppacher, GECCO "
-          "2007)", "20,696", "the paper's title; its setting (time steps) not read here")),
+        SANTA_FE_PUBLISHED,
     ),
+    *_pair("ant, Santa Fe trail", "benchmarks.tasks.ant", {"trail": "santa_fe"}, 120_000,
+           (20_000, 100_000),
+           "Koza's Santa Fe trail: 32 x 32 torus, 89 pellets, 600 time steps (actions); "
+           "solved when all 89 are eaten.", SANTA_FE_PUBLISHED),
     Bench(
         "ant, John Muir trail", "benchmarks.tasks.ant", {"trail": "john_muir"}, 60,
         (10_000, 30_000), (*DETERMINISTIC, "islands + cache + restarts"),
@@ -144,6 +219,10 @@ BENCHES = (
         "200): a 12-state FSA eats all 89 pellets (`benchmarks.tasks.ant.SOLUTION`, found "
         "by a run with `--neutral`).",
     ),
+    *_pair("ant, John Muir trail", "benchmarks.tasks.ant", {"trail": "john_muir"}, 120_000,
+           (20_000, 100_000),
+           "Jefferson et al.'s John Muir trail: 32 x 32 torus, 89 pellets, 200 time steps "
+           "(actions); solved when all 89 are eaten."),
     Bench(
         "maze (wall following)", "benchmarks.tasks.maze", {}, 60, (3_000, 10_000),
         (*DETERMINISTIC, "deterministic + neutral"),
@@ -151,6 +230,38 @@ BENCHES = (
         "in turn within 1000 actions; solved when all four are done. Our maze: no published "
         "figure applies.",
     ),
+    *_pair("maze", "benchmarks.tasks.maze", {}, 30_000, (3_000, 10_000),
+           "A 7 x 7-cell perfect maze with a wall-ahead sensor, the exit reached from four "
+           "corners in turn within 1000 actions; solved when all four are done. Our maze: no "
+           "published figure applies."),
+    Bench(
+        "lawnmower", "benchmarks.tasks.lawnmower", {}, 0, (3_000, 10_000), ISSUE_31,
+        "Koza's lawnmower (Genetic Programming II, 1994, chapter 8): an 8 x 8 torus, `Mow`, "
+        "`Left` and `Frog(dx, dy)` (a jump whose two real parameters matter), 100 moving "
+        "actions or 100 turns; no sensor (one representation); solved when all 64 cells are "
+        "mown.",
+        (("genetic programming without ADFs (Koza 1994), 64-cell lawn", "—",
+          "Koza, Genetic Programming II (1994), chapter 8, reports efforts with and without "
+          "ADFs; the figures were not read here"),),
+        individuals=30_000, candidates=CANDIDATES),
+    Bench(
+        "Tartarus", "benchmarks.tasks.tartarus", {}, 0, (20_000, 100_000), ISSUE_31,
+        "Teller's Tartarus (1994): a bulldozer on a 6 x 6 board pushes 6 boxes to the walls "
+        "in 80 time steps (edge 1, corner 2); eight sensing skills (no time step) and three "
+        "actions; 10 fixed boards played in a row, mean score per board; solved at a mean of "
+        "4 (our threshold).",
+        (("evolved finite state controllers (Ashlock and others)", "—",
+          "scores per board were published; no effort figure, and the papers were not read "
+          "here"),),
+        individuals=120_000),
+    Bench(
+        "dock (noisy)", "benchmarks.tasks.dock", {}, 300, (50_000, 150_000),
+        (DEFAULT, "robust", "islands", "noisy"),
+        "Our docking robot: a camera skill with misses, `Turn(angle)` and `Drive(distance)` "
+        "with noise, bumps and wheel slip, a `Dock` that fails one time in five; 80 time "
+        "steps; solved when the best FSA docks in every episode of its evaluation and its "
+        "confirmation.",
+        fresh=1000),
     Bench(
         "pour water (noisy)", "examples.pour_water", {"p_fail": 0.2}, 2000,
         (50_000, 150_000), ("robust", "islands", "islands + cache refresh",
@@ -187,11 +298,29 @@ class RunResult:
     fresh_rate_simplified: float | None = None  # of the exported FSA (skillcompose.evolve.simplify)
 
 
+def config_settings(config: str, deterministic: bool) -> dict[str, Any]:
+    """The evolution settings named ``config`` for a task that is ``deterministic`` or not."""
+    if config == DEFAULT:
+        return {**preset_settings("default", deterministic), "require_holds": False}
+    return CONFIGS[config]
+
+
+def budget(bench: Bench, config: str, population: int | None) -> int:
+    """The generation budget of ``config`` on ``bench``: its own, or, for a benchmark that
+    gives each setting the same individuals, that many over the population."""
+    if not bench.individuals:
+        return bench.generations
+    m = population or int(config_settings(config, bench.fresh == 0).get(
+        "population", EvolutionConfig().population))
+    return max(1, bench.individuals // m)
+
+
 def run_one(bench: Bench, config: str, seed: int, generations: int,
             population: int | None) -> RunResult:
     """One serial evolution run."""
     task = load_task(bench.module, **bench.settings)
-    cfg = EvolutionConfig(**{**CONFIGS[config], "generations": generations})
+    cfg = EvolutionConfig(**{**config_settings(config, task.deterministic),
+                             "generations": generations})
     if population is not None:
         cfg = cfg.replace(population=population,
                           elitism=min(cfg.elitism, population // cfg.islands - 1))
@@ -410,7 +539,7 @@ def targets(bench: Bench, rows: Sequence[Row], generations: int) -> list[str]:
 
 def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argparse.Namespace,
            seconds: float, load: tuple[tuple[float, float, float], tuple[float, float, float]],
-           generations: dict[str, int], seeds: Sequence[int]) -> str:
+           generations: dict[tuple[str, str], int], seeds: Sequence[int]) -> str:
     lines = [
         "# Search strength: classic FSA benchmarks, computational effort",
         "",
@@ -464,14 +593,25 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "beside the parameter noise alone; in runs outside this page the same confirmation "
         "on 50 worlds gave a median 46.5 generations and a fresh rate of 0.995 there).",
         "",
+        "Issue 31 (representations): the ant trails and the maze are measured in two "
+        f"forms, *reporting* ({FORMS['reporting']}) and *sensing* ({FORMS['sensing']}), "
+        "with the same settings and the same budget in individuals for every setting, "
+        "beside Koza's lawnmower, Tartarus and a noisy docking robot. `default` is what "
+        "`skillcompose evolve` runs without `--preset` for the task. **Held out from all "
+        f"tuning**, chosen before any run of them: the benchmarks {', '.join(HELD_OUT_TASKS)} "
+        f"entirely, and seeds {HELD_OUT_FROM_SEED} and above on every task (run them with "
+        f"`--first-seed {HELD_OUT_FROM_SEED}`); no settings are chosen on them, now or "
+        "later. Each section says which it is.",
+        "",
     ]
     for bench in benches:
         rows = results[bench.name]
+        gens = {row.config: generations[(bench.name, row.config)] for row in rows}
         lines += [f"## {section_name(bench, seeds)}", "", f"{RUN_MARK}{args.stamp}.", "",
                   bench.about, "",
                   f"`{bench.module}` {bench.settings or ''}, {len(rows[0].runs)} seeds "
-                  f"({seed_span(seeds)}), budget {generations[bench.name]} generations."
-                  + ("" if bench.fresh else f" {seeds_note(seeds)}"), ""]
+                  f"({seed_span(seeds)}), {budget_text(bench, gens)}. "
+                  f"{held_out_note(bench, seeds)}", ""]
         lines += bench_table(bench, rows)
         lines.append("")
         if bench.published:
@@ -479,7 +619,8 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
                       "| method | effort | source, and what we could check |", "|---|---:|---|"]
             lines += [f"| {m} | {e} | {s} |" for m, e, s in bench.published]
             lines.append("")
-        t = targets(bench, rows, generations[bench.name])
+        t = targets(bench, rows, max(gens.values()))
+        t += form_targets(bench, results)
         if t:
             lines += ["Targets of the issue, as measured:", "", *t, ""]
     return "\n".join(lines) + "\n"
@@ -563,6 +704,17 @@ def _settings(d: dict[str, Any]) -> str:
     return ", ".join(f"`{k}={v}`" for k, v in d.items())
 
 
+QUICK = ("ant, Santa Fe trail", "maze (wall following)", "ant, Santa Fe trail, sensing")
+"""The benchmarks of ``--quick``."""
+
+HELD_OUT_TASKS = ("ant, John Muir trail, sensing", "Tartarus", "dock (noisy)")
+"""Held out from all tuning of issue 31 (chosen before any run of them): no setting is
+chosen on these benchmarks, and none will be; they are measured to check the choice."""
+HELD_OUT_FROM_SEED = 1000
+"""Seeds from this one up are held out from all tuning, on every task (issue 31): the
+settings may be chosen on seeds below it (the deterministic preset on 0–29, the noisy preset
+on pour water's 100–119), never on these."""
+
 TUNED_SEEDS = range(30)
 """The seeds on which the settings were chosen (short runs of a few candidates): figures on
 them flatter the settings; ``--first-seed 30`` or above measures seeds none was tuned on."""
@@ -579,12 +731,90 @@ def section_name(bench: Bench, seeds: Sequence[int]) -> str:
 
 
 def seeds_note(seeds: Sequence[int]) -> str:
+    """Whether ``seeds`` are held out from tuning (:data:`HELD_OUT_FROM_SEED`)."""
+    if seeds[0] >= HELD_OUT_FROM_SEED:
+        return (f"Held-out seeds ({HELD_OUT_FROM_SEED} and above): no settings were chosen "
+                "on them.")
     tuned = [s for s in seeds if s in TUNED_SEEDS]
-    if not tuned:
-        return (f"Held-out seeds: the settings were chosen on seeds "
-                f"{seed_span(TUNED_SEEDS)}, none of these.")
-    return (f"Seeds among those the settings were chosen on ({seed_span(TUNED_SEEDS)}): "
-            "these figures flatter them.")
+    if tuned:
+        return (f"Seeds among those the settings were chosen on ({seed_span(TUNED_SEEDS)}): "
+                "these figures flatter them.")
+    return (f"Tuning seeds (below {HELD_OUT_FROM_SEED}): settings may be chosen on them, so "
+            "these figures may flatter them.")
+
+
+def held_out_note(bench: Bench, seeds: Sequence[int]) -> str:
+    """What a section says of its task and seeds: held out from tuning, or not."""
+    task = ("Held-out task: no settings were chosen on it, and none will be. "
+            if bench.name in HELD_OUT_TASKS else "")
+    return task + seeds_note(seeds)
+
+
+def budget_text(bench: Bench, generations: dict[str, int]) -> str:
+    """A section's budget: generations, or the same individuals for every setting."""
+    if not bench.individuals:
+        return f"budget {max(generations.values())} generations"
+    each = ", ".join(f"{c} {g}" for c, g in generations.items())
+    return (f"budget {bench.individuals:,} individuals per run for every setting "
+            f"(generations: {each})")
+
+
+SANTA_FE_DEFAULT_TARGET = 100_000
+"""Issue 31: Koza's effort on the Santa Fe trail in the sensing form, default settings."""
+
+
+def _figure(text: str) -> float | None:
+    try:
+        return float(text.replace(",", ""))
+    except ValueError:
+        return None
+
+
+def _span(row: Row) -> str:
+    return f"{_num(row.effort)} [{_num(row.ci[0])}, {_num(row.ci[1])}]"
+
+
+def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
+    """Issue 31's targets for a task of its list, as measured: the default's effort on the
+    Santa Fe trail written with a sensing skill; below plain GP's published figure; at most
+    twice the effort of the same settings on the task's other representation; on a noisy
+    task, the default against the head's (``robust``)."""
+    if not bench.other_form and bench.configs != ISSUE_31 and bench.name not in HELD_OUT_TASKS:
+        return []
+    by = {r.config: r for r in results[bench.name]}
+    out = []
+    if bench.name == "ant, Santa Fe trail, sensing" and DEFAULT in by:
+        row = by[DEFAULT]
+        out.append(f"- default: effort at most {SANTA_FE_DEFAULT_TARGET:,}: "
+                   f"**{_yes(row.effort <= SANTA_FE_DEFAULT_TARGET)}** ({_span(row)})")
+    gp = next((p for p in bench.published if _figure(p[1]) is not None), None)
+    if gp is not None and bench.fresh == 0:
+        figure = _figure(gp[1]) or 0.0
+        out += [f"- {row.config}: below the published plain-GP figure ({gp[1]}): "
+                f"**{_yes(row.effort < figure)}** ({_span(row)})" for row in by.values()]
+    other = {r.config: r for r in results.get(bench.other_form, [])}
+    for name, row in by.items():
+        if name not in other:
+            continue
+        them = other[name].effort
+        ratio = row.effort / them if math.isfinite(them) and them > 0 else math.inf
+        ok = row.effort <= 2 * them
+        out.append(f"- {name}: at most twice the effort of the {bench.other_form} section "
+                   f"({_num(2 * them)}): **{_yes(ok)}** ({_span(row)} against "
+                   f"{_span(other[name])}; ratio "
+                   f"{'—' if math.isnan(ratio) or math.isinf(ratio) else f'{ratio:.2f}'})")
+    if bench.fresh and DEFAULT in by and "robust" in by:
+        new, old = by[DEFAULT], by["robust"]
+        rates = [_median([r.fresh_rate for r in row.runs if r.fresh_rate is not None])
+                 for row in (new, old)]
+        solved = [sum(r.solved for r in row.runs) for row in (new, old)]
+        ok = solved[0] >= solved[1] and new.episodes_effort <= old.episodes_effort and \
+            rates[0] >= rates[1] - 0.01
+        out.append(f"- default no worse than the head's `robust`: **{_yes(ok)}** (solved "
+                   f"{solved[0]} against {solved[1]}; effort in episodes "
+                   f"{_num(new.episodes_effort)} against {_num(old.episodes_effort)}; median "
+                   f"fresh rate {rates[0]:.3f} against {rates[1]:.3f}, 0.01 allowed)")
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -634,39 +864,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.only:
         benches = [b for b in benches if any(s in b.name for s in args.only)]
     if args.quick:
-        benches = [b for b in benches if b.name.startswith(("maze", "ant, Santa"))]
+        benches = [b for b in benches if b.name in QUICK]
     if not benches:
         p.error(f"--only {args.only} matches no benchmark; names: "
                 f"{', '.join(b.name for b in BENCHES)}")
-    unknown = [c for c in args.config if c not in CONFIGS]
+    unknown = [c for c in args.config if c not in CONFIGS and c != DEFAULT]
     if unknown:
         p.error(f"--config {unknown[0]!r}: no such settings; choose among "
                 f"{', '.join(repr(c) for c in CONFIGS)}")
     if args.config:
-        benches = [replace(b, configs=tuple(c for c in b.configs if c in args.config))
+        benches = [replace(b, configs=tuple(c for c in (*b.configs, *b.candidates)
+                                            if c in args.config))
                    for b in benches]
         benches = [b for b in benches if b.configs]
         if not benches:
             p.error(f"--config {args.config}: none of the chosen benchmarks compares them")
     seeds = [args.first_seed + k for k in range(2 if args.quick else args.seeds)]
-    generations = {b.name: 3 if args.quick else b.generations for b in benches}
     population = 40 if args.quick else None
+    generations = {(b.name, c): 3 if args.quick else budget(b, c, population)
+                   for b in benches for c in b.configs}
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     jobs = [(b, c, s) for b in benches for c in b.configs for s in seeds]
     results: dict[tuple[str, str], list[RunResult]] = {}
     if args.workers == 1:
-        done = [run_one(b, c, s, generations[b.name], population) for b, c, s in jobs]
+        done = [run_one(b, c, s, generations[(b.name, c)], population) for b, c, s in jobs]
     else:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
-            futures = [pool.submit(run_one, b, c, s, generations[b.name], population)
+            futures = [pool.submit(run_one, b, c, s, generations[(b.name, c)], population)
                        for b, c, s in jobs]
             done = [f.result() for f in futures]
     for r in done:
         results.setdefault((r.bench, r.config), []).append(r)
         print(f"{r.bench} | {r.config} | seed {r.seed}: solved {r.solved} at "
               f"{r.solved_at}, {r.episodes} episodes, {r.wall:.1f} s", file=sys.stderr)
-    rows = {b.name: [summarise(b, c, results[(b.name, c)], generations[b.name])
+    rows = {b.name: [summarise(b, c, results[(b.name, c)], generations[(b.name, c)])
                      for c in b.configs] for b in benches}
     text = report(rows, benches, args, time.perf_counter() - t0, (load0, os.getloadavg()),
                   generations, seeds)

@@ -21,7 +21,24 @@ A hand-written FSA of 5 states that looks left and right at each gap eats 81 pel
 efficiently, with all but a few of the 200 steps: the 12-state :data:`SOLUTION`, found by
 evolution, eats the last pellet at the 200th.
 
-Usage: ``skillcompose evolve benchmarks.tasks.ant``.
+Two forms (:mod:`benchmarks.tasks.forms`), chosen by ``form``:
+
+- ``form="reporting"`` (the default, as above, Jefferson-style): the actions ``Move``,
+  ``TurnLeft``, ``TurnRight`` report ``food`` / ``empty`` ahead; one FSA step is one time
+  step and the task's step limit is the trail's time limit.
+- ``form="sensing"`` (Koza's ant: ``IF-FOOD-AHEAD`` costs no time, only ``MOVE``, ``LEFT``
+  and ``RIGHT`` do): the sensing skill ``FoodAhead`` (``yes`` / ``no``, no time step) and the
+  actions ``Move``, ``TurnLeft``, ``TurnRight`` whose outcome is ``done``. The ant counts its
+  actions and the last one of the trail's budget (600 on the Santa Fe trail, Koza's) ends
+  the run in ``time_up``; the engine's step limit is set far above (every action preceded by
+  500 sensing steps), so it never cuts a run short. :func:`sensing` turns a reporting FSA
+  into the sensing FSA that acts the same: both eat the same pellets.
+
+Reference results (tested): :data:`REFERENCE` eats 81 pellets of the John Muir trail in 200
+steps and all 89 of the Santa Fe trail in 600, in either form; :data:`SOLUTION` eats all 89
+of the John Muir trail in 200, in either form.
+
+Usage: ``skillcompose evolve benchmarks.tasks.ant --set trail=santa_fe --set form=sensing``.
 """
 
 from __future__ import annotations
@@ -33,6 +50,8 @@ import numpy as np
 
 from skillcompose import FSA, Blackboard, Registry, State, skill
 from skillcompose.task import Task
+
+from .forms import MAX_SENSES, TIME_UP, check_form, sensing_step_limit, to_sensing
 
 MUIR_TRAIL = (
     ".##########.....................",
@@ -126,6 +145,9 @@ class Ant:
     col: int = 0
     heading: int = 0  # index into _HEADINGS
     eaten: int = 0
+    actions: int = 0  # time steps used (the sensing form counts them here)
+    senses: int = 0  # sensing steps since the last action (the sensing form)
+    budget: int = 0  # time steps of the sensing form (0: the engine's step limit ends it)
 
     def ahead(self) -> tuple[int, int]:
         dr, dc = _HEADINGS[self.heading]
@@ -172,6 +194,67 @@ def turn_right(bb: Blackboard, rng: np.random.Generator) -> Literal["food", "emp
 
 
 SKILLS = (move, turn_left, turn_right)
+
+
+def _act(ant: Ant) -> Literal["done", "time_up"]:
+    """Count a time step of the sensing form: ``time_up`` after the budget's last."""
+    ant.actions += 1
+    ant.senses = 0
+    return TIME_UP if ant.actions >= ant.budget else "done"
+
+
+@skill(writes={"ant": Ant})
+def food_ahead(bb: Blackboard, rng: np.random.Generator) -> Literal["yes", "no", "time_up"]:
+    """Whether the cell ahead holds food; no time step (``time_up`` only after
+    :data:`~benchmarks.tasks.forms.MAX_SENSES` sensing steps in a row: a loop that never
+    acts)."""
+    ant: Ant = bb["ant"]
+    ant.senses += 1
+    bb["ant"] = ant
+    if ant.senses > MAX_SENSES:
+        return TIME_UP
+    return "yes" if ant.sense() == "food" else "no"
+
+
+@skill(name="Move", writes={"ant": Ant})
+def move_done(bb: Blackboard, rng: np.random.Generator) -> Literal["done", "time_up"]:
+    """Step one cell forward, eating a pellet there; one time step."""
+    ant: Ant = bb["ant"]
+    ant.row, ant.col = ant.ahead()
+    if (ant.row, ant.col) in ant.food:
+        ant.food.discard((ant.row, ant.col))
+        ant.eaten += 1
+    bb["ant"] = ant
+    return _act(ant)
+
+
+@skill(name="TurnLeft", writes={"ant": Ant})
+def turn_left_done(bb: Blackboard, rng: np.random.Generator) -> Literal["done", "time_up"]:
+    """Turn 90 degrees left in place; one time step."""
+    ant: Ant = bb["ant"]
+    ant.heading = (ant.heading - 1) % 4
+    bb["ant"] = ant
+    return _act(ant)
+
+
+@skill(name="TurnRight", writes={"ant": Ant})
+def turn_right_done(bb: Blackboard, rng: np.random.Generator) -> Literal["done", "time_up"]:
+    """Turn 90 degrees right in place; one time step."""
+    ant: Ant = bb["ant"]
+    ant.heading = (ant.heading + 1) % 4
+    bb["ant"] = ant
+    return _act(ant)
+
+
+SENSING_SKILLS = (food_ahead, move_done, turn_left_done, turn_right_done)
+"""The skills of ``form="sensing"``."""
+
+
+def sensing(fsa: FSA, steps: int) -> FSA:
+    """The sensing-form FSA that takes the same actions as the reporting-form ``fsa`` (each
+    action followed by ``FoodAhead``), for ``steps`` time steps."""
+    return to_sensing(fsa, "FoodAhead", {"food": "yes", "empty": "no"},
+                      sensing_step_limit(steps))
 
 
 def _reference() -> FSA:
@@ -229,37 +312,46 @@ SOLUTION = _solution()
 move or turn one step), found by evolution: the trail is solvable in this encoding."""
 
 
-def make_task(trail: str = "john_muir", steps: int | None = None) -> Task:
+def make_task(trail: str = "john_muir", steps: int | None = None,
+              form: str = "reporting") -> Task:
     """The ant task on ``trail`` (one of :data:`TRAILS`) with ``steps`` time steps (default:
-    the trail's, :data:`STEPS`)."""
+    the trail's, :data:`STEPS`), written in ``form`` (``reporting`` or ``sensing``; see the
+    module's docstring)."""
     if trail not in TRAILS:
         raise ValueError(f"trail={trail!r}: choose one of {', '.join(sorted(TRAILS))}")
+    form = check_form(form)
     steps = STEPS[trail] if steps is None else steps
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ValueError(f"steps={steps!r}: expected a whole number of time steps >= 1")
     lines = TRAILS[trail]
     total = sum(line.count("#") for line in lines)
     registry = Registry()
-    for s in SKILLS:
+    for s in SKILLS if form == "reporting" else SENSING_SKILLS:
         registry.add(s)
+    budget = steps if form == "sensing" else 0
 
     def setup(rng: np.random.Generator) -> Blackboard:
-        return Blackboard({"ant": parse_trail(lines)})
+        ant = parse_trail(lines)
+        ant.budget = budget
+        return Blackboard({"ant": ant})
 
     def fitness(outcome: str, bb: Blackboard, steps_run: int) -> float:
         return float(bb["ant"].eaten)
 
+    sensing_form = form == "sensing"
     return Task(
-        name=f"ant_{trail}",
+        name=f"ant_{trail}" + ("_sensing" if sensing_form else ""),
         registry=registry,
         setup=setup,
         fitness=fitness,
         minimize=False,
         target=float(total),
-        step_limit=steps,
+        step_limit=sensing_step_limit(steps) if sensing_form else steps,
         trials=1,
         error_fitness=0.0,
-        terminal_skills=(),
+        # the sensing form: every skill's time_up ends the run, every other edge is a state's
+        terminal_skills=tuple(s.name for s in SENSING_SKILLS) if sensing_form else (),
+        terminals=(TIME_UP,) if sensing_form else ("success", "failure"),
         deterministic=True,
-        settings={"trail": trail, "steps": steps},
+        settings={"trail": trail, "steps": steps, "form": form},
     )

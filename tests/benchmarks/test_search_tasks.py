@@ -77,6 +77,8 @@ def test_bad_task_settings_say_what_to_give() -> None:
         load_task("benchmarks.tasks.ant", trail="los_altos")
     with pytest.raises(TaskError, match="whole number of actions"):
         load_task("benchmarks.tasks.maze", steps=0)
+    with pytest.raises(TaskError, match="choose one of reporting, sensing"):
+        load_task("benchmarks.tasks.ant", form="telepathic")
 
 
 def test_koza_effort_by_hand() -> None:
@@ -95,10 +97,12 @@ def test_quick_run_writes_its_report(tmp_path: Path) -> None:
     assert bench_search.main(["--quick", "--workers", "1", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "search.md").read_text(encoding="utf-8")
     assert "Command: `python benchmarks/bench_search.py --quick --workers 1 --out" in text
-    for bench in ("## ant, Santa Fe trail", "## maze (wall following)"):
+    for bench in ("## ant, Santa Fe trail", "## maze (wall following)",
+                  "## ant, Santa Fe trail, sensing"):
         assert bench in text
     assert "among the tuning seeds (0–29," in text
-    assert text.count("Seeds among those the settings were chosen on (0–29)") == 2
+    assert text.count("Seeds among those the settings were chosen on (0–29)") == 3
+    assert "**Held out from all tuning**" in text
     rows = [line for line in text.splitlines() if line.startswith("| paper | 40 | ")]
     assert len(rows) == 2  # one per task, measured: M = 40, two seeds
     assert all("/2 |" in row for row in rows)
@@ -152,7 +156,8 @@ def test_held_out_seeds_get_sections_of_their_own_beside_the_first() -> None:
     assert bench_search.section_name(santa, [0, 1]) == "ant, Santa Fe trail"
     held_out = bench_search.section_name(santa, list(range(100, 110)))
     assert held_out == "ant, Santa Fe trail, seeds 100–109"
-    assert "Held-out" in bench_search.seeds_note([100, 101])
+    assert "Held-out" in bench_search.seeds_note([1000, 1001])
+    assert "Tuning seeds (below 1000)" in bench_search.seeds_note([100, 101])
     assert "flatter" in bench_search.seeds_note([28, 29, 30])  # two of them were tuned on
     old = ("# Search\n\nCommand: `x`  \nMachine: old.\n\n"
            f"## ant, Santa Fe trail\n\n{bench_search.RUN_MARK}of then.\n\nold Santa Fe\n\n"
