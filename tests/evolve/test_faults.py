@@ -76,6 +76,7 @@ def test_some_errors_are_counted_and_the_run_succeeds(
 
 
 # -- item 10: the exported FSA on fresh episodes --------------------------------------------
+@pytest.mark.slow  # a whole run from the command line: about 1.5 s
 def test_the_summary_and_run_json_report_fresh_episodes(
     tmp_path: Path, capsys: pytest.CaptureFixture[str],
 ) -> None:

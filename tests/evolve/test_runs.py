@@ -515,6 +515,7 @@ def test_evolve_help_is_for_people(capsys: pytest.CaptureFixture[str]) -> None:
         assert internal not in text
 
 
+@pytest.mark.slow  # evolves, then extends: about 2.5 s
 def test_extending_a_solved_run_says_how_to_search_on(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = tmp_path / "run"
