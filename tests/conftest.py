@@ -9,6 +9,17 @@ matplotlib.use("Agg")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 
+# -- parallel workers (pytest-xdist, `--dist loadgroup` in pyproject) ------------------------------
+# A file's tests run in one worker (its module fixtures, a viewer or an evolution, are built
+# once), and every test that starts Ray or a network namespace in one group of their own, so
+# that two Ray clusters never share the machine's cores at once.
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        heavy = item.get_closest_marker("ray") or item.get_closest_marker("private_network")
+        group = "ray-and-namespaces" if heavy else item.nodeid.split("::", 1)[0]
+        item.add_marker(pytest.mark.xdist_group(group))
+
+
 # -- tests that start Ray on this machine ------------------------------------------------------
 # A Ray started without a cluster (ray.init) listens on every interface in the Ray versions we
 # support, and offers no setting that keeps it on 127.0.0.1. So a test marked
@@ -34,7 +45,7 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     root = str(pyfuncitem.config.rootpath)
     done = subprocess.run(
         [*PRIVATE_NET, sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider",
-         pyfuncitem.nodeid],
+         "-n", "0", pyfuncitem.nodeid],
         cwd=root, env={**os.environ, _INSIDE: "1"}, capture_output=True, text=True,
         timeout=900, check=False)
     skipped = [line for line in done.stdout.splitlines() if line.startswith("SKIPPED")]

@@ -162,8 +162,11 @@ class Page:
     page: Any
     errors: list[str] = field(default_factory=list)
 
-    def goto(self, url: str) -> None:
-        self.page.goto(url, wait_until="networkidle")
+    def goto(self, url: str, timeout_s: float | None = None) -> None:
+        """Open ``url`` and wait for the network to go quiet (``timeout_s`` beyond the
+        page's default, for a page the server builds slowly: a simulated episode)."""
+        self.page.goto(url, wait_until="networkidle",
+                       timeout=None if timeout_s is None else 1000 * timeout_s)
 
 
 @pytest.fixture

@@ -323,7 +323,7 @@ def test_a_dynamic_replay_steps_through_the_simulation(viewer: Viewer, runs_dir:
                                                         page: Page) -> None:
     page.goto(viewer.url + "/replay?" + urlencode({
         "path": str(runs_dir / "pour.fsa.yaml"), "task": "examples.pour_water",
-        "settings": "backend=dynamic"}))
+        "settings": "backend=dynamic"}), timeout_s=300)  # the viewer's REPLAY_TIMEOUT_S
     wait_for(lambda: page.page.get_by_test_id("robot-scene").count() == 1, timeout=120,
              what="the scene of the simulated pour")
     summary = page.page.get_by_test_id("episode-summary").inner_text()
