@@ -398,6 +398,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="2 seeds, 3 generations (table 1) or 9,000 episodes (ours), 50 fresh "
                         "episodes, 10 PR2-model ones: checks the script, measures nothing")
     p.add_argument("--out", default=str(ROOT / "docs" / "results"))
+    p.add_argument("--report-only", action="store_true",
+                   help="write the report again from the rows in paper_comparison.json; run "
+                        "nothing (for a comparison stopped part-way: the report says which "
+                        "cases it holds)")
     args = p.parse_args(argv)
     exps = [EXPERIMENTS[e.strip()] for e in args.experiments.split(",") if e.strip()]
     algorithms = [a.strip() for a in args.algorithms.split(",") if a.strip()]
@@ -412,7 +416,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows_path = out / "paper_comparison.json"
-    rows = _rows(rows_path) if args.append else []
+    rows = _rows(rows_path) if args.append or args.report_only else []
+    if args.report_only:
+        exps, algorithms, worlds = [], [], []
     done = {(r.experiment, r.algorithm, r.world, r.seed) for r in rows}
     started, load_before, t0 = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), \
         _load_avg(), time.perf_counter()
