@@ -180,7 +180,7 @@ def finetune(key: str, t: Tuning, workers: int, work: Path) -> dict[str, Any]:
         "history": [{"generation": r.generation, "best": r.best, "mean": r.mean,
                      "episodes": r.evaluations} for r in result.history],
         "faults": result.faults.to_dict(),
-        "fsa": _relative(path.read_text(encoding="utf-8")),  # the file's text, no path
+        "fsa_path": str(path), "fsa": _relative(path.read_text(encoding="utf-8")),
         "same_as_seed": result.best_fsa.states == load_fsa(ROOT / exp.fsa).states,
     }
 
