@@ -22,11 +22,16 @@ Koza's computational effort (Genetic Programming, 1992, chapter 8): with ``P(M, 
 share of runs of population ``M`` solved by generation ``i``, ``I(M, i, z) = M (i + 1)
 ceil(ln(1 - z) / ln(1 - P(M, i)))`` individuals must be processed to solve the task with
 probability ``z`` = 0.99 by independent runs of ``i + 1`` generations; the effort ``E`` is
-the minimum over ``i``. Its 95 % interval is a percentile bootstrap over the runs (2000
-resamples); an upper end of infinity means that some resamples hold no solved run. Beside it,
-the effort in episodes counts what was actually run (a cache, repeated trials and
-confirmations change it): the same minimum with the mean episodes the runs had spent by
-generation ``i`` in place of ``M (i + 1)``.
+the minimum over ``i``. A population that grows at restarts (``restart_patience``, the
+``adaptive`` preset) has no one ``M``: there ``M (i + 1)`` becomes what each run actually
+processed, the sum of its generations' sizes, and ``P`` the share of runs solved within ``x``
+individuals (:func:`effort_in_individuals`; for a fixed population the same figure), and such
+a run stops once it has processed its budget in individuals. Its 95 % interval is a
+percentile bootstrap over the runs (2000 resamples); an upper end of infinity means that
+some resamples hold no solved run. Beside it, the effort in episodes counts what was
+actually run (a cache, repeated trials and confirmations change it): the same minimum with
+the mean episodes the runs had spent by generation ``i`` (by ``x`` individuals) in place of
+``M (i + 1)``.
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ import shlex
 import statistics
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
@@ -55,6 +60,7 @@ if str(ROOT) not in sys.path:  # the task modules under benchmarks/tasks, run fr
 from skillcompose.evolve import (  # noqa: E402
     PRESETS,
     EvolutionConfig,
+    GenerationRecord,
     check_fresh,
     evolve,
     preset_settings,
@@ -106,6 +112,12 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "deterministic": PRESETS["deterministic"],
     "deterministic + restarts": {**PRESETS["deterministic"], "restart_after": 20},
     "deterministic + neutral": {**PRESETS["deterministic"], "neutral": True},
+    "adaptive": PRESETS["adaptive"],
+    "adaptive, patience 20": {**PRESETS["adaptive"], "restart_patience": 20},
+    "adaptive, patience 50": {**PRESETS["adaptive"], "restart_patience": 50},
+    "adaptive, growth 2": {**PRESETS["adaptive"], "restart_growth": 2},
+    "adaptive, keep none": {**PRESETS["adaptive"], "restart_keep": 0},
+    "adaptive + neutral": {**PRESETS["adaptive"], "neutral": True},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
     # candidates for one default that adapts (issue 31), made of the options there are
@@ -163,7 +175,9 @@ combinations that did best on the classic benchmarks."""
 CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neutral + restarts",
               "deterministic M 100 + neutral", "deterministic M 100 + neutral + restarts",
               "islands + cache + neutral", "islands + cache + neutral + restarts",
-              "islands + cache + restarts", "robust + cache + unique + neutral", "paper")
+              "islands + cache + restarts", "robust + cache + unique + neutral", "paper",
+              "adaptive", "adaptive, patience 20", "adaptive, patience 50",
+              "adaptive, growth 2", "adaptive, keep none", "adaptive + neutral")
 """More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
 options give, for whoever turns the best into a default that adapts."""
 
@@ -296,6 +310,25 @@ class RunResult:
     # (generation, best so far, episodes so far)
     fresh_rate: float | None = None  # of the FSA as evolved
     fresh_rate_simplified: float | None = None  # of the exported FSA (skillcompose.evolve.simplify)
+    sizes: list[int] = field(default_factory=list)  # each generation's individuals (empty:
+    # ``population`` every generation); a population that grows at restarts differs
+
+
+def individuals(run: RunResult, generation: int) -> int:
+    """The individuals ``run`` had processed by the end of ``generation``: ``M (i + 1)`` for
+    a fixed population, the sum of the generations' sizes for one that grows."""
+    if not run.sizes:
+        return run.population * (generation + 1)
+    return sum(run.sizes[:generation + 1])
+
+
+def solved_individuals(run: RunResult) -> int | None:
+    """The individuals ``run`` had processed when it was solved (None: it was not)."""
+    return None if run.solved_at is None else individuals(run, run.solved_at)
+
+
+class _Spent(Exception):
+    """A run whose population grows has processed its budget in individuals."""
 
 
 def config_settings(config: str, deterministic: bool) -> dict[str, Any]:
@@ -324,28 +357,50 @@ def run_one(bench: Bench, config: str, seed: int, generations: int,
     if population is not None:
         cfg = cfg.replace(population=population,
                           elitism=min(cfg.elitism, population // cfg.islands - 1))
+    records: list[GenerationRecord] = []
+
+    def spent(rec: GenerationRecord) -> None:  # a growing population: stop at the budget
+        records.append(rec)
+        if bench.individuals and cfg.restart_patience and not task.solved(rec.best) and \
+                sum(r.population for r in records) > bench.individuals:
+            raise _Spent
+
     t0 = time.perf_counter()
-    r = evolve(task, cfg, seed=seed, workers=1, backend="serial", simplify_result=False,
-               check_trials=bench.fresh)
+    try:
+        r = evolve(task, cfg, seed=seed, workers=1, backend="serial", simplify_result=False,
+                   check_trials=bench.fresh, on_generation=spent)
+    except _Spent:  # unsolved within the budget: no next generation would have run
+        return RunResult(
+            bench=bench.name, config=config, seed=seed, solved=False, solved_at=None,
+            generations=records[-1].generation, episodes=records[-1].total_evaluations,
+            wall=time.perf_counter() - t0, population=cfg.population,
+            curve=_curve(records, task.minimize), sizes=[r.population for r in records])
     wall = time.perf_counter() - t0
     simplified = None
     if bench.fresh:  # what `skillcompose evolve` exports: simplified (after the timing)
         fsa = simplify(task, r.best_fsa, seed=seed, time_limit=cfg.eval_time_limit)
         simplified = check_fresh(task, fsa, seed, bench.fresh,
                                  cfg.eval_time_limit)["success_rate"]
-    sign = -1.0 if task.minimize else 1.0
-    best = -math.inf
-    curve = []
-    for h in r.history:
-        best = max(best, sign * h.best)
-        curve.append((h.generation, sign * best, h.total_evaluations))
+    curve = _curve(r.history, task.minimize)
     return RunResult(
         bench=bench.name, config=config, seed=seed, solved=r.solved,
         solved_at=r.generations if r.solved else None, generations=r.generations,
         episodes=r.evaluations, wall=wall, population=cfg.population, curve=curve,
         fresh_rate=r.fresh.get("success_rate") if r.fresh else None,
         fresh_rate_simplified=simplified,
+        sizes=[h.population for h in r.history] if cfg.restart_patience else [],
     )
+
+
+def _curve(history: Sequence[GenerationRecord], minimize: bool) -> list[tuple[int, float, int]]:
+    """(generation, best so far, episodes so far) of each generation."""
+    sign = -1.0 if minimize else 1.0
+    best = -math.inf
+    curve = []
+    for h in history:
+        best = max(best, sign * h.best)
+        curve.append((h.generation, sign * best, h.total_evaluations))
+    return curve
 
 
 # -- statistics ------------------------------------------------------------------------------
@@ -356,16 +411,38 @@ def koza_effort(solved_at: Sequence[int | None], population: int, generations: i
     return _effort(solved_at, [population * (i + 1) for i in range(generations + 1)], z)
 
 
+def effort_in_individuals(solved: Sequence[int | None], z: float = Z) -> float:
+    """Koza's effort from the individuals each run had processed when it was solved (None:
+    not solved): the minimum over ``x`` of ``x ceil(ln(1 - z) / ln(1 - P(x)))``, ``P(x)``
+    the share of runs solved within ``x`` individuals. With a fixed population ``x = M (i +
+    1)``, so it is :func:`koza_effort`; a population that grows at restarts processes the
+    sum of its generations' sizes, which this counts."""
+    return _effort_at(solved, lambda x: float(x), z)
+
+
 def episode_effort(runs: Sequence[RunResult], generations: int, z: float = Z) -> float:
-    """The same minimum with the mean episodes the runs had spent by each generation."""
-    spent = []
-    for i in range(generations + 1):
+    """The same minimum with the mean episodes the runs had spent by each point (each
+    number of individuals processed; generation ``i`` for a fixed population)."""
+    def spent(x: int) -> float:
         per_run = []
         for r in runs:
-            upto = [e for g, _, e in r.curve if g <= i]
+            upto = [e for g, _, e in r.curve if individuals(r, g) <= x]
             per_run.append(upto[-1] if upto else 0)
-        spent.append(statistics.fmean(per_run))
-    return _effort([r.solved_at for r in runs], spent, z)[0]
+        return statistics.fmean(per_run)
+    return _effort_at([solved_individuals(r) for r in runs], spent, z)
+
+
+def _effort_at(solved: Sequence[int | None], cost: Callable[[int], float],
+               z: float) -> float:
+    """``min_x cost(x) times(P(x))`` over the points ``x`` where a run was solved (the
+    minimum of a cost that never falls is at one of them)."""
+    n = len(solved)
+    best = math.inf
+    for x in sorted({s for s in solved if s is not None}):
+        p = sum(1 for s in solved if s is not None and s <= x) / n
+        times = 1 if p >= z else math.ceil(math.log(1 - z) / math.log(1 - p))
+        best = min(best, cost(x) * times)
+    return best
 
 
 def _effort(solved_at: Sequence[int | None], cost: Sequence[float],
@@ -383,15 +460,18 @@ def _effort(solved_at: Sequence[int | None], cost: Sequence[float],
 
 
 def bootstrap_effort(solved_at: Sequence[int | None], population: int, generations: int,
-                     resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of Koza's effort, resampling runs."""
+                     resamples: int = 2000, seed: int = 0,
+                     solved: Sequence[int | None] | None = None) -> tuple[float, float]:
+    """95 % percentile bootstrap interval of Koza's effort, resampling runs; ``solved``:
+    the individuals each run had processed when solved, in place of ``M (i + 1)``."""
     rng = np.random.default_rng(seed)
-    n = len(solved_at)
+    if solved is None:
+        solved = [None if s is None else population * (s + 1) for s in solved_at]
+    n = len(solved)
     values = []
     for _ in range(resamples):
         pick = rng.integers(n, size=n)
-        values.append(koza_effort([solved_at[int(k)] for k in pick], population,
-                                  generations)[0])
+        values.append(effort_in_individuals([solved[int(k)] for k in pick]))
     lo, hi = np.quantile(np.array(values), [0.025, 0.975], method="inverted_cdf")
     return float(lo), float(hi)
 
@@ -432,10 +512,20 @@ class Row:
 def summarise(bench: Bench, config: str, runs: list[RunResult], generations: int) -> Row:
     solved_at = [r.solved_at for r in runs]
     population = runs[0].population
-    effort, where = koza_effort(solved_at, population, generations)
-    return Row(config, runs, effort, where, bootstrap_effort(solved_at, population,
-                                                             generations),
+    solved = [solved_individuals(r) for r in runs]  # what each run processed: M may grow
+    effort = effort_in_individuals(solved)
+    where = koza_effort(solved_at, population, generations)[1] if \
+        not any(r.sizes for r in runs) else None
+    return Row(config, runs, effort, where,
+               bootstrap_effort(solved_at, population, generations, solved=solved),
                episode_effort(runs, generations))
+
+
+def population_text(runs: Sequence[RunResult]) -> str:
+    """The population of a row: M, or its first and largest when it grows at restarts."""
+    most = max((max(r.sizes) for r in runs if r.sizes), default=runs[0].population)
+    return str(runs[0].population) if most == runs[0].population else \
+        f"{runs[0].population} to {most}"
 
 
 def bench_table(bench: Bench, rows: Sequence[Row]) -> list[str]:
@@ -451,7 +541,7 @@ def bench_table(bench: Bench, rows: Sequence[Row]) -> list[str]:
         runs = row.runs
         n_solved = sum(r.solved for r in runs)
         gens = [float(r.solved_at) for r in runs if r.solved_at is not None]
-        line = (f"| {row.config} | {runs[0].population} | {n_solved}/{len(runs)} | "
+        line = (f"| {row.config} | {population_text(runs)} | {n_solved}/{len(runs)} | "
                 f"{_num(_median(gens))} | {_num(row.effort)} [{_num(row.ci[0])}, "
                 f"{_num(row.ci[1])}] | {_num(row.episodes_effort)} | " +
                 " | ".join(_fit(_median([best_at(r, b) for r in runs]))
@@ -557,7 +647,10 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "Koza's computational effort `E = min_i M (i + 1) ceil(ln(0.01) / ln(1 - P(M, i)))` "
         "counts the individuals to process for 99 % probability of a solution by "
         "independent runs; `M` is the population (all islands together), `i` a generation "
-        "(0 is the initial one), `P(M, i)` the share of runs solved by generation `i`. The "
+        "(0 is the initial one), `P(M, i)` the share of runs solved by generation `i`. A "
+        "population that grows at restarts (`M` given as `30 to 1920`: the first and the "
+        "largest) is counted by the individuals each run actually processed, the sum of its "
+        "generations' sizes, in place of `M (i + 1)`. The "
         "interval is a 95 % percentile bootstrap over the runs (2000 resamples; ∞: some "
         "resamples hold no solved run). *Effort (episodes)* is the same minimum with the "
         "episodes the runs actually spent (cache hits cost none; repeated trials and "

@@ -5,7 +5,8 @@ the elites first, then pairs of children of parents picked by tournament, crosse
 probability ``p_cross`` and mutated (:mod:`skillcompose.evolve.operators`). Islands
 (``islands`` > 1) are slices of the one population, bred one after the other from the run's
 one breeding generator; migration draws nothing at random, and a stagnant island restarts
-from random genomes around its best.
+from random genomes around its best (``restart_after``). With ``restart_patience`` the whole
+population restarts so when the run's best stalls, and grows by ``restart_growth`` each time.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from .genome import Genome
 from .operators import crossover, initialize, mutate
 from .state import RunState
 
-__all__ = ["breed", "island_bounds", "migrate", "note_islands", "stagnant"]
+__all__ = ["breed", "grows", "island_bounds", "migrate", "next_size", "note_islands",
+           "stagnant"]
 
 _RETRIES = 8  # at most this many extra mutations make a duplicate child new
 
@@ -34,12 +36,17 @@ def breed(
     run.elite_fitness = {}
     seen: set[tuple[Any, ...]] = set()
     g = run.generation + 1
-    restarts = stagnant(run)
-    for k, (lo, hi) in enumerate(island_bounds(run.cfg)):
-        yield from _breed_island(run, population[lo:hi], fitness[lo:hi], nxt, hi, g, seen,
-                                 k in restarts)
+    grow = grows(run)
+    restarts = {0} if grow else stagnant(run)
+    now = island_bounds(run.cfg, len(population))
+    for k, ((lo, hi), (_, end)) in enumerate(zip(now, island_bounds(run.cfg, next_size(run)),
+                                                 strict=True)):
+        keep = None if k not in restarts else _kept(run.cfg, grow)
+        yield from _breed_island(run, population[lo:hi], fitness[lo:hi], nxt, end, g, seen,
+                                 keep)
     run.population = nxt
     run.generation = g
+    run.restarts += grow
     for k in restarts:
         run.island_best[k] = (run.island_best[k][0], g)
     if bred is not None:
@@ -48,9 +55,11 @@ def breed(
 
 def _breed_island(
     run: RunState, population: list[Genome], fitness: list[float], nxt: list[Genome], end: int,
-    g: int, seen: set[tuple[Any, ...]], restart: bool,
+    g: int, seen: set[tuple[Any, ...]], keep: int | None,
 ) -> Iterator[Genome]:
-    """One island's children, appended to ``nxt`` until it holds ``end`` individuals."""
+    """One island's children, appended to ``nxt`` until it holds ``end`` individuals;
+    ``keep``: a restart, which keeps that many of the best (None: no restart)."""
+    restart = keep is not None
     cfg, rng, n = run.cfg, run.rng, len(population)
     sizes = [len(x) for x in population]
     # neutral: at equal rank the newer genome (higher uid) goes first, so a child as good
@@ -61,7 +70,7 @@ def _breed_island(
     rank = [0] * n
     for r, i in enumerate(order):
         rank[i] = r
-    for i in order[:max(cfg.elitism, 1) if restart else cfg.elitism]:
+    for i in order[:cfg.elitism if keep is None else keep]:
         e = population[i].copy()
         e.origin = {**e.origin, "elite": True}
         run.elite_fitness[e.origin["uid"]] = fitness[i]
@@ -118,10 +127,32 @@ def _made_new(run: RunState, child: Genome, seen: set[tuple[Any, ...]]) -> list[
     return ops
 
 
-def island_bounds(cfg: EvolutionConfig) -> list[tuple[int, int]]:
-    """Each island's slice ``[lo, hi)`` of the population."""
-    size = cfg.population // cfg.islands
+def island_bounds(cfg: EvolutionConfig, population: int | None = None) -> list[tuple[int, int]]:
+    """Each island's slice ``[lo, hi)`` of a population of ``population`` individuals (the
+    config's)."""
+    size = (population or cfg.population) // cfg.islands
     return [(k * size, (k + 1) * size) for k in range(cfg.islands)]
+
+
+def _kept(cfg: EvolutionConfig, whole: bool) -> int:
+    """How many of the best a restart keeps: the elites (at least the best), or, at a restart
+    of the whole population, ``restart_keep`` when it is set."""
+    if whole and cfg.restart_keep is not None:
+        return cfg.restart_keep
+    return max(cfg.elitism, 1)
+
+
+def grows(run: RunState) -> bool:
+    """Whether the next generation restarts the whole population, larger
+    (``restart_patience``): the run's best has not improved for that many generations."""
+    patience = run.cfg.restart_patience
+    return patience > 0 and bool(run.island_best) and \
+        run.generation - run.island_best[0][1] >= patience
+
+
+def next_size(run: RunState) -> int:
+    """The individuals of the next generation: the population grows at a restart."""
+    return run.cfg.population_after(run.restarts + grows(run))
 
 
 def migrate(
@@ -134,7 +165,7 @@ def migrate(
     if cfg.islands < 2 or cfg.migrants == 0 or run.generation == 0 or \
             run.generation % cfg.migration_interval:
         return population, fitness
-    bounds = island_bounds(run.cfg)
+    bounds = island_bounds(run.cfg, len(population))
     sizes = [len(x) for x in population]
 
     def ranked(lo: int, hi: int) -> list[int]:
@@ -169,10 +200,10 @@ def stagnant(run: RunState) -> set[int]:
 
 def note_islands(run: RunState, fitness: list[float]) -> None:
     """Track each island's best and the generation it last improved (for restarts)."""
-    if run.cfg.restart_after == 0:
+    if run.cfg.restart_after == 0 and run.cfg.restart_patience == 0:
         return
     sizes = [len(x) for x in run.population]
-    bounds = island_bounds(run.cfg)
+    bounds = island_bounds(run.cfg, len(run.population))
     for k, (lo, hi) in enumerate(bounds):
         key = min(run.rank_key(fitness[i], sizes[i])[0] for i in range(lo, hi))
         if k >= len(run.island_best):

@@ -27,7 +27,7 @@ from typing import Any
 
 from skillcompose.stats import SequentialRateTest
 
-from .breeding import breed
+from .breeding import breed, next_size
 from .generation import cost
 from .genome import Genome
 from .holds import required_rate
@@ -56,7 +56,8 @@ def _most(run: RunState) -> tuple[int, int]:
     """The most evaluations and episodes a generation can take: every individual a job."""
     cfg = run.cfg
     trials = max(run.trials, cfg.cache_refresh) if cfg.cache else run.trials
-    return cfg.population, cfg.population * trials
+    size = next_size(run)  # larger than the population when the next one restarts
+    return size, size * trials
 
 
 class _Undo:
@@ -67,7 +68,7 @@ class _Undo:
         self.kept: dict[str, Any] = {
             "population": run.population, "generation": run.generation,
             "next_uid": run.next_uid, "elite_fitness": run.elite_fitness,
-            "island_best": list(run.island_best)}
+            "island_best": list(run.island_best), "restarts": run.restarts}
 
     def __call__(self, run: RunState) -> None:
         run.rng.bit_generator.state = self.rng

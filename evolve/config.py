@@ -75,6 +75,10 @@ class EvolutionConfig:
     migrants: int = 2
     topology: str = "ring"
     restart_after: int = 0
+    restart_patience: int = 0
+    restart_growth: int = 1
+    population_max: int | None = None
+    restart_keep: int | None = None
     unique_children: bool = False
     neutral: bool = False
     terminal_weight: float = 1.0
@@ -108,10 +112,44 @@ class EvolutionConfig:
             elif self.migrants >= size:
                 problems.append(f"migrants = {self.migrants} must be smaller than an island "
                                 f"({size} individuals)")
+        problems += self._restart_problems() if not problems else []
         if problems:
             raise EvolutionConfigError(
                 "invalid evolution settings: " + "; ".join(problems)
             )
+
+    def _restart_problems(self) -> list[str]:
+        """What is wrong with the restarts of the whole population (``restart_patience``)."""
+        if self.restart_patience == 0:
+            return []
+        problems = []
+        if self.islands > 1:
+            problems.append(f"restart_patience = {self.restart_patience} restarts the whole "
+                            f"population, which islands = {self.islands} split; give "
+                            "restart_after for islands, or islands = 1")
+        if self.restart_after:
+            problems.append(f"restart_patience = {self.restart_patience} and restart_after = "
+                            f"{self.restart_after} are two kinds of restart; give one of them")
+        if self.restart_keep is not None and self.restart_keep >= self.population:
+            problems.append(f"restart_keep = {self.restart_keep} must be smaller than "
+                            f"population = {self.population}")
+        if self.population_max is not None and self.population_max < self.population:
+            problems.append(f"population_max = {self.population_max} must be at least "
+                            f"population = {self.population}")
+        return problems
+
+    def population_after(self, restarts: int) -> int:
+        """The population after ``restarts`` restarts of the whole population: ``population``
+        times ``restart_growth`` each time, at most ``population_max`` (and 1,000,000)."""
+        most = min(self.population_max or _POPULATION_MOST, _POPULATION_MOST)
+        size = self.population
+        if self.restart_growth == 1:
+            return size
+        for _ in range(restarts):
+            if size * self.restart_growth >= most:
+                return max(size, most)
+            size *= self.restart_growth
+        return size
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -129,6 +167,8 @@ class EvolutionConfig:
     def replace(self, **changes: Any) -> EvolutionConfig:
         return dataclasses.replace(self, **changes)
 
+
+_POPULATION_MOST = 10**6  # the population setting's bound
 
 EVALUATION_BACKENDS = ("serial", "process", "ray")
 """Where evaluations run: in the calling process, a local process pool, or Ray."""
@@ -178,6 +218,19 @@ PRESETS: dict[str, dict[str, Any]] = {
         "unique_children": True,
         **_HOLDS,
     },
+    "adaptive": {  # the deterministic preset, restarted larger whenever it stalls
+        "population": 30,
+        "elitism": 2,
+        "tournament": 5,
+        "initial_nodes": 12,
+        "param_sigma": 0.1,
+        "cache": True,
+        "unique_children": True,
+        "restart_patience": 100,
+        "restart_growth": 4,
+        "population_max": 1920,
+        **_HOLDS,
+    },
     "push": {
         "population": 150,
         "trials": 20,
@@ -221,20 +274,29 @@ children (each generation spends its evaluations on genomes not met before), the
 surviving, tournaments of 5, initial FSAs of 12 nodes, parameter noise 0.1. One trial per
 evaluation: a deterministic task runs one whatever ``trials`` says.
 
+``adaptive`` is the deterministic preset restarted with a larger population whenever it
+stalls, as IPOP-CMA-ES restarts (Auger and Hansen 2005): it starts with 30 individuals, and
+when the best has not improved for 100 generations (``restart_patience``) it restarts
+from fresh random FSAs around its two best, four times larger (30, 120, 480, then 1920, the
+cap, at every later restart). A small population solves the easy representations of a task
+cheaply; a hard one (the Santa Fe ant with a sensing skill) stalls and gets the large
+population it needs. Chosen with ``benchmarks/bench_search.py`` on the tuning tasks and seeds
+of issue 31 (docs/evolve.md, "One default that adapts").
+
 Every preset but ``paper`` has ``require_holds``: a run is solved when its exported FSA holds
 on fresh episodes at the required success rate (see :mod:`skillcompose.evolve.holds`).
 ``default`` (the command line's when no preset is given, and :func:`evolve`'s when given no
-config) is not a fixed table: it is ``deterministic`` for a task whose episodes are all the
-same (``Task.deterministic``), else ``robust`` (:func:`preset_settings`)."""
+config) is not a fixed table: it is ``adaptive`` for a task whose episodes are all the same
+(``Task.deterministic``), else ``robust`` (:func:`preset_settings`)."""
 
 DEFAULT_PRESET = "default"
 
 
 def preset_settings(name: str, deterministic: bool) -> dict[str, Any]:
     """The settings of preset ``name`` for a task that is ``deterministic`` or not:
-    ``default`` resolves to ``deterministic`` or ``robust``, the others are as listed."""
+    ``default`` resolves to ``adaptive`` or ``robust``, the others are as listed."""
     if name == DEFAULT_PRESET:
-        return dict(PRESETS["deterministic" if deterministic else "robust"])
+        return dict(PRESETS["adaptive" if deterministic else "robust"])
     return dict(PRESETS[name])
 
 
@@ -242,13 +304,15 @@ PRESET_NAMES = (DEFAULT_PRESET, *PRESETS)
 """Every name ``--preset`` takes."""
 
 PRESET_ABOUT = {
-    DEFAULT_PRESET: "robust, or deterministic for a task whose episodes are all the same",
+    DEFAULT_PRESET: "robust, or adaptive for a task whose episodes are all the same",
     "paper": "table 1 exactly, solved on one evaluation",
     "robust": "our best options for noisy tasks, chosen on pouring water",
     "islands": "robust on 4 islands with ring migration and unique children",
     "noisy": "islands, each genome's trials kept, a strict confirmation",
     "deterministic": "a small population that evolves long, for tasks whose fitness never "
                      "changes",
+    "adaptive": "the deterministic preset, restarted with a population four times larger "
+                "whenever its best stalls",
     "push": "for many parameters, such as a network's weights",
 }
 """What each preset is for, in one line; its settings are :data:`PRESETS`'."""

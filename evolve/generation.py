@@ -14,7 +14,7 @@ import statistics
 from collections.abc import Iterable, Iterator
 from typing import Any
 
-from .breeding import note_islands
+from .breeding import next_size, note_islands
 from .evaluation import Evaluator, Job
 from .export import best_fsa, header, named
 from .genome import Genome
@@ -89,8 +89,9 @@ def evaluate(
     cfg = run.cfg
     g = run.generation + 1 if bred is not None else run.generation
     batch = _Jobs(run, g)
+    expected = next_size(run) if bred is not None else len(run.population)
     results = evaluator.evaluate(batch.make(bred if bred is not None else run.population),
-                                 expected=cfg.population)
+                                 expected=expected)
     fitness, jobs, keys = batch.fitness, batch.jobs, batch.keys
     assert run.generation == g and len(fitness) == len(run.population)
     run.gen_faults = evaluator.faults
@@ -136,6 +137,7 @@ def record(
         evals_per_s=episodes / gen_time if gen_time > 0 else 0.0,
         wall_time=run.wall(),
         faults=run.gen_faults.to_dict(),
+        population=len(fitness),
     )
     run.fault_totals.add(run.gen_faults)
     note_islands(run, fitness)

@@ -30,6 +30,7 @@ class GenerationRecord:
     evals_per_s: float
     wall_time: float  # seconds since the run started, across resumes
     faults: dict[str, int] = field(default_factory=dict)  # Faults.to_dict() of the generation
+    population: int = 0  # its individuals (0 in older runs' records: the config's population)
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)

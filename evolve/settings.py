@@ -289,6 +289,26 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("restart_after", Kind.WHOLE, "restart an island whose best has not improved for "
             "this many generations: its elites (at least its best) stay, the rest become "
             "fresh random FSAs", low=0, high=MOST, zero="never", flag="--restart-after"),
+    Setting("restart_patience", Kind.WHOLE, "restart the whole population when the run's "
+            "best has not improved for this many generations: its elites (at least its best) "
+            "stay, the rest become fresh random FSAs, and the population grows by "
+            "{restart_growth}, up to {population_max}", low=0, high=MOST, zero="never",
+            flag="--restart-patience", metavar="R",
+            more="Restarts with a growing population, as IPOP-CMA-ES (Auger and Hansen 2005): "
+            "a small population first, which solves easy tasks cheaply, and a larger one each "
+            "time the search stalls. Not with {islands} (each island restarts with "
+            "{restart_after}); the restart count and the population's size are checkpointed."),
+    Setting("restart_growth", Kind.WHOLE, "with {restart_patience}, the factor by which the "
+            "population grows at each restart", low=1, high=1000, flag="--restart-growth",
+            metavar="F"),
+    Setting("population_max", Kind.WHOLE, "with {restart_patience}, the population grows to "
+            "at most this many individuals; restarts at the cap keep its size", low=2,
+            high=10**6, none="no cap below 1,000,000", flag="--population-max", metavar="N"),
+    Setting("restart_keep", Kind.WHOLE, "with {restart_patience}, how many of the best a "
+            "restart of the whole population keeps; the run's best so far is reported "
+            "whatever it keeps", low=0, high=10**6, none="the elites, at least the best",
+            flag="--restart-keep", metavar="K",
+            more="0 makes each restart an independent run, as IPOP-CMA-ES's are."),
     Setting("unique_children", Kind.SWITCH, "mutate a child again, up to 8 times, until its "
             "genome is new to the generation (and, with {cache}, to the run)",
             flag="--unique-children"),

@@ -126,6 +126,8 @@ class RunState:
         self.elite_fitness: dict[int, float] = {}
         # per island: its best rank key so far and the generation it was reached (restarts)
         self.island_best: list[tuple[float, int]] = []
+        # restart_patience: restarts of the whole population so far, each growing it
+        self.restarts = 0
         self.first_error: str | None = None  # the run's first exception, summarised
         self.gen_faults = Faults()
         self.fault_totals = Faults()  # over the run so far, for the progress line
@@ -159,6 +161,7 @@ class RunState:
             "next_uid": self.next_uid,
             "elite_fitness": [[uid, f] for uid, f in self.elite_fitness.items()],
             "island_best": [[f, since] for f, since in self.island_best],
+            "restarts": self.restarts,
             "first_error": self.first_error,
             "exported": self.exported,
         }
@@ -173,8 +176,10 @@ class RunState:
         try:
             self.generation = _whole(st["generation"])
             self.population = [self._genome(g) for g in st["population"]]
-            if len(self.population) != self.cfg.population:
-                raise ValueError("population size")
+            self.restarts = _whole(st.get("restarts", 0))  # none in older checkpoints
+            if len(self.population) != self.cfg.population_after(self.restarts):
+                raise ValueError(f"population size {len(self.population)} after "
+                                 f"{self.restarts} restarts")
             fitness = st.get("fitness")
             if fitness is not None:
                 fitness = [_number(f) for f in fitness]

@@ -87,9 +87,9 @@ def test_the_pool_gives_the_serial_run() -> None:
 
 def test_the_paper_preset_is_table_1_and_the_others_require_holds() -> None:
     assert PRESETS["paper"] == {} and not EvolutionConfig().require_holds
-    for name in ("robust", "islands", "noisy", "deterministic", "push"):
+    for name in ("robust", "islands", "noisy", "deterministic", "adaptive", "push"):
         assert PRESETS[name]["require_holds"] is True
-    assert preset_settings("default", True) == PRESETS["deterministic"]
+    assert preset_settings("default", True) == PRESETS["adaptive"]
     assert preset_settings("default", False) == PRESETS["robust"]
 
 
