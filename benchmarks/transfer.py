@@ -83,15 +83,17 @@ EXPERIMENTS: dict[str, Experiment] = {
 
 
 CAUSES = {
-    "unreachable": "the dynamic skill's own IK waypoints (pre-push and stroke ends near each "
-                   "other in joint space; pre-grasp, lift) found no solution where the "
-                   "kinematic twin's single pose had one",
+    "unreachable": "no IK solution: for push, the finger tips on the object's face (or a "
+                   "straight stroke from there) at every height, with either arm; for "
+                   "stacking, the kinematic plan itself, made from the simulated poses",
     "joint_limits": "as unreachable, only outside the joint limits",
     "collision": "every IK solution of a goal or waypoint hits the table (the dynamic push "
-                 "aims lower than the kinematic one, the forearm nearer the table), or a "
-                 "stacking goal would sink the held object into the other as they now stand",
+                 "aims lower than the kinematic one, and its strokes are also checked "
+                 "against the simulated table), or a stacking goal would sink the held "
+                 "object into the other as they now stand",
     "blocked": "an arm or the base stopped short of its goal: it struck the table or an "
-               "object on the way (joint-space motion between waypoints)",
+               "object on the way (joint-space motion between approach or stacking "
+               "waypoints)",
     "hit_table": "the robot ended a motion touching the table",
     "toppled": "the pushed object tipped over instead of sliding",
     "not_moved": "the pushed object moved less than 5 cm",

@@ -40,11 +40,14 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import mujoco  # type: ignore[import-untyped]  # no stubs or py.typed
 import numpy as np
+import pinocchio as pin
 
 from skillcompose import Blackboard, Skill, SkillSpec
 from skillcompose.errors import BlackboardKeyError
-from skillcompose.robots.model import ARMS, Arm
+from skillcompose.robots.collision import Scene
+from skillcompose.robots.model import ARM_JOINTS, ARMS, TORSO_JOINT, Arm
 from skillcompose.robots.physics import Motion, PhysicsWorld, PoseRecorder
 from skillcompose.robots.physics_model import SceneSpec
 from skillcompose.skill import SkillFn
@@ -59,7 +62,9 @@ from skillcompose.skills.kinematic_world import (
     KinematicWorld,
     RobotState,
     fail,
+    reach,
     read_state,
+    transform_robot_to_world,
 )
 
 __all__ = [
@@ -70,11 +75,15 @@ __all__ = [
     "DynamicWorld",
     "Execution",
     "Via",
+    "arm_touches_table",
+    "cartesian_path",
     "dynamic_twin",
     "execute",
+    "follow_path",
     "in_dynamic_world",
     "judge_motion",
     "sync",
+    "tool_world",
     "world_of",
 ]
 
@@ -99,6 +108,19 @@ BASE_TURN_RAD_S = 1.0
 TORSO_SPEED_M_S = 0.05
 """Torso lift speed [m/s] (the PR2's is about 0.013-0.05 m/s)."""
 MIN_MOTION_S = 0.3
+CARTESIAN_STEP_M = 0.02
+"""A straight-line tool motion (:func:`cartesian_path`) is solved by IK at most this far
+apart [m]..."""
+CARTESIAN_JUMP_RAD = 0.3
+"""... no joint changing more than this between two of its steps [rad] ..."""
+LINE_TOLERANCE_M = 0.01
+"""... and the tool kept this close to the line between them, where the servo's straight
+line in joint space takes it (checked at the steps' joint-space midpoints) [m]."""
+TABLE_GAP_M = 0.005
+"""A planned arm configuration keeps every link of the arm this far from the simulated
+table (:func:`arm_touches_table`) [m]."""
+PATH_LAG_RAD = 0.15
+"""A step of a path on the way that ends this far from its goal [rad] was held up."""
 
 
 def _wrap(angle: float) -> float:
@@ -251,6 +273,123 @@ def execute(world: DynamicWorld, physics: PhysicsWorld, before: RobotState,
             physics.open_gripper(arm)
             released[arm] = before.held[arm]
     return Execution(tuple(motions), grasped, released)
+
+
+# -- straight-line tool motions ---------------------------------------------------------------
+def tool_world(world: DynamicWorld, state: RobotState, arm: Arm,
+               q_arm_rad: Sequence[float] | None = None) -> pin.SE3:
+    """``arm``'s tool frame in world for ``state`` (or its joints at ``q_arm_rad``)."""
+    q = state.q_arm_rad[arm] if q_arm_rad is None else q_arm_rad
+    return transform_robot_to_world(state.base_pose_world) * \
+        world.kinematic.transform_tool_to_robot(arm, state.torso_height_m, q)
+
+
+def arm_touches_table(physics: PhysicsWorld, state: RobotState, arm: Arm, *,
+                      gap_m: float = TABLE_GAP_M) -> tuple[str, ...]:
+    """The links of ``arm`` (shoulder to finger tips) that come within ``gap_m`` of the table
+    in the physics model itself when the robot is at ``state`` (base, torso, that arm's
+    joints; the rest as simulated now): the check the kinematic world's sphere model cannot
+    make for the links it does not cover (the shoulder's housing). Moves nothing: it poses
+    a copy of the simulation's state."""
+    compiled = physics.physics
+    if compiled.table_body is None:
+        return ()
+    model = compiled.model
+    cache = _TABLE_CHECK.get(id(model))
+    if cache is None or cache[0] is not model:
+        table = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) ==
+                 compiled.table_body]
+        links = {a: [g for g in compiled.robot_geoms if
+                     model.body(int(model.geom_bodyid[g])).name.startswith(f"{a[0]}_")]
+                 for a in ARMS}
+        cache = (model, mujoco.MjData(model), table, links)
+        _TABLE_CHECK[id(model)] = cache
+    _, data, table, links = cache
+    data.qpos[:] = physics.data.qpos
+    x, y, yaw = state.base_pose_world
+    for name, value in (("base_x", x), ("base_y", y), ("base_yaw", yaw),
+                        (TORSO_JOINT, state.torso_height_m),
+                        *zip(ARM_JOINTS[arm], state.q_arm_rad[arm], strict=True)):
+        data.qpos[compiled.qpos[name]] = value
+    mujoco.mj_kinematics(model, data)
+    near: set[str] = set()
+    for g in links[arm]:
+        for t in table:
+            if mujoco.mj_geomDistance(model, data, g, t, gap_m, None) < gap_m:
+                near.add(model.body(int(model.geom_bodyid[g])).name)
+    return tuple(sorted(near))
+
+
+_TABLE_CHECK: dict[int, tuple[Any, Any, list[int], dict[Arm, list[int]]]] = {}
+
+
+def _off_line(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    length2 = float(ab @ ab)
+    s = 0.0 if length2 < 1e-12 else float(np.clip((point - a) @ ab / length2, 0.0, 1.0))
+    return float(np.linalg.norm(point - (a + s * ab)))
+
+
+def cartesian_path(world: DynamicWorld, state: RobotState, arm: Arm, goal_world: pin.SE3,
+                   scene: Scene, rng: np.random.Generator, *,
+                   step_m: float = CARTESIAN_STEP_M,
+                   clear: Callable[[RobotState], bool] | None = None,
+                   ) -> list[tuple[RobotState, float]]:
+    """``arm``'s tool on a straight line from where it is in ``state`` to ``goal_world``
+    (torso and base fixed; the position interpolated, the rotation along the geodesic): the
+    robots at most ``step_m`` apart along it, each by IK warm-started from the one before
+    (no restarts, so that each is the continuation of the last), clear of ``scene``, within
+    :data:`CARTESIAN_JUMP_RAD` of the one before in every joint and with the tool within
+    :data:`LINE_TOLERANCE_M` of the line half way between them in joint space. Returns
+    ``(robot, distance from the start [m])`` in order, the goal last when the whole line
+    has such solutions; it stops at the first step without one (empty: not even the first),
+    or whose robot ``clear`` (when given) refuses."""
+    start = tool_world(world, state, arm)
+    a = np.asarray(start.translation, dtype=float)
+    b = np.asarray(goal_world.translation, dtype=float)
+    length = float(np.linalg.norm(b - a))
+    turn = pin.log3(start.rotation.T @ goal_world.rotation)
+    n = max(1, math.ceil(max(length / step_m, float(np.linalg.norm(turn)) / 0.15)))
+    out: list[tuple[RobotState, float]] = []
+    at = state
+    for k in range(1, n + 1):
+        s = k / n
+        target = pin.SE3(start.rotation @ pin.exp3(s * turn), a + s * (b - a))
+        answer = reach(world.kinematic, at, arm, target, scene, rng, move_torso=False,
+                       diagnose=False, restarts=0)
+        if answer.state is None:
+            break
+        q0, q1 = at.q_arm_rad[arm], answer.state.q_arm_rad[arm]
+        if max(abs(_wrap(x - y)) for x, y in zip(q1, q0, strict=True)) > CARTESIAN_JUMP_RAD:
+            break
+        mid = [y + 0.5 * _wrap(x - y) for x, y in zip(q1, q0, strict=True)]
+        if _off_line(np.asarray(tool_world(world, at, arm, mid).translation), a, b) \
+                > LINE_TOLERANCE_M:
+            break
+        at = RobotState(answer.state.base_pose_world, answer.state.torso_height_m,
+                        answer.state.q_arm_rad, state.held, state.arm_in_use)
+        if clear is not None and not clear(at):
+            break
+        out.append((at, s * length))
+    return out
+
+
+def follow_path(physics: PhysicsWorld, arm: Arm, path: Sequence[RobotState],
+                speed_m_s: float, step_m: float = CARTESIAN_STEP_M) -> list[Motion]:
+    """Drive ``arm`` through ``path``'s joints in order (a :func:`cartesian_path`), each step
+    at ``speed_m_s`` of the tool without stopping to settle, the last one settled; returns
+    the motions to judge: the last, and any step on the way that ended more than
+    :data:`PATH_LAG_RAD` off its goal (held up, not merely lagging the moving goal)."""
+    motions: list[Motion] = []
+    for k, state in enumerate(path):
+        last = k == len(path) - 1
+        now = physics.arm_q(arm)
+        duration = max(step_m / speed_m_s, 0.5 * _arm_duration(now, state.q_arm_rad[arm]))
+        motion = physics.track_arm(arm, state.q_arm_rad[arm], duration,
+                                   **({} if last else {"settle_s": 0.0}))
+        if last or motion.error > PATH_LAG_RAD:
+            motions.append(motion)
+    return motions
 
 
 # -- the blackboard from the simulation ------------------------------------------------------

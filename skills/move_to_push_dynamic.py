@@ -19,11 +19,16 @@ standing at ``object_position_world``).
   (:data:`PUSH_HEIGHTS_M`: low, so that a tall object slides rather than tips); the closed
   finger tips are then driven
   through the object's place along that bearing, :data:`PUSH_STROKE_M` past first contact,
-  at :data:`PUSH_SPEED_M_S`, and back to the pre-push pose. Both waypoints are solved by the
-  kinematic IK (joint limits, the table): ``failure`` with its reason when either has no
-  solution, and nothing moves. **Pushed** (``success``, ``pushed`` = True): after the push,
-  the object's centre moved at least :data:`PUSHED_M` (5 cm) along the push direction and
-  it stands upright (its z axis within 20° of vertical). Otherwise ``failure`` with
+  at :data:`PUSH_SPEED_M_S`, and back to the pre-push pose. The plan (:func:`_plan`): IK
+  puts the tips on the object's face (from the unfolded arm, the arm as it is, then with
+  the torso free); the stroke and the retreat are straight lines of the tool
+  (:func:`~skillcompose.skills.dynamic_world.cartesian_path`), shortened to
+  :data:`MIN_STROKE_M` / :data:`MIN_CLEARANCE_M` when the line ends early, every step kept
+  off the simulated table (:func:`~skillcompose.skills.dynamic_world.arm_touches_table`);
+  the other, empty arm when the one in use has none. ``failure`` with the IK's reason when
+  no push can be planned, and nothing moves. **Pushed** (``success``, ``pushed`` = True):
+  after the push, the object's centre moved at least :data:`PUSHED_M` (5 cm) along the push
+  direction and it stands upright (its z axis within 20° of vertical). Otherwise ``failure`` with
   ``last_failure_reason``: ``blocked`` / ``hit_table`` (the arm's motion), ``toppled`` (the
   object fell over) or ``not_moved`` (it moved less than 5 cm along the push).
 
@@ -35,7 +40,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -51,11 +56,15 @@ from skillcompose.skills.dynamic_world import (
     DynamicSkill,
     DynamicWorld,
     Execution,
+    arm_touches_table,
+    cartesian_path,
     dynamic_twin,
     execute,
+    follow_path,
     in_dynamic_world,
     judge_motion,
     sync,
+    tool_world,
 )
 from skillcompose.skills.kinematic_world import (
     TABLE_KEY,
@@ -63,7 +72,6 @@ from skillcompose.skills.kinematic_world import (
     RobotState,
     arms_for,
     fail,
-    fmt,
     object_position,
     reach,
     read_state,
@@ -73,6 +81,8 @@ from skillcompose.skills.move_to_push import base_hits_table
 from skillcompose.skills.network import Topology
 
 __all__ = [
+    "MIN_CLEARANCE_M",
+    "MIN_STROKE_M",
     "OBJECT_FRICTION",
     "OBJECT_MASS_KG",
     "PUSHED_M",
@@ -109,7 +119,14 @@ above 0.3. Low pushes put the forearm near the table for deep objects."""
 PUSH_CLEARANCE_M = 0.06
 """The pre-push pose keeps the finger tips this far before the object's face [m]."""
 PUSH_STROKE_M = 0.07
-"""How far the finger tips travel past first contact with the object [m]."""
+"""How far the finger tips travel past first contact with the object [m]..."""
+MIN_STROKE_M = 0.055
+"""... at least, when the arm's straight line ends before (near the end of its reach) [m]."""
+STROKE_STEP_M = 0.01
+"""The stroke's straight line is solved at this step [m], so that it may end anywhere past
+:data:`MIN_STROKE_M` to the centimetre."""
+MIN_CLEARANCE_M = 0.02
+"""The pre-push pose's clearance when :data:`PUSH_CLEARANCE_M` has no straight line [m]."""
 PUSH_SPEED_M_S = 0.1
 """Tool speed of the stroke [m/s]."""
 FINGER_REACH_M = 0.019
@@ -128,8 +145,6 @@ APPROACH_RISE_M = 0.2
 """An arm's approach (:func:`approach`) starts this far above its target [m]..."""
 APPROACH_BACK_M = 0.15
 """... and this far back from it, along the tool's x axis on the floor [m]."""
-STRAIGHT_RAD = 0.8
-"""The two ends of a push stroke are this close in every joint [rad], at most."""
 ROUTE_CLEARANCE_M = 0.05
 """The base's path around the table keeps its disc this far from the table [m]."""
 _ROUTE_STEP_M = 0.025
@@ -248,9 +263,10 @@ def make_move_base(topology: Topology) -> DynamicSkill:
                         route=base_route)
 
 
-def _push_poses(physics: PhysicsWorld, state: RobotState, position: Sequence[float],
-                half: _ObjectHalf, rise_m: float) -> tuple[pin.SE3, pin.SE3, float]:
-    """The pre-push and end-of-stroke tool poses in world, and the push bearing [rad]."""
+def _touch_pose(physics: PhysicsWorld, state: RobotState, position: Sequence[float],
+                half: _ObjectHalf, rise_m: float) -> tuple[pin.SE3, float]:
+    """The tool pose in world where the closed finger tips meet the object's face, ``rise_m``
+    above its bottom (never above its centre), and the push bearing [rad]."""
     bearing = math.atan2(position[1] - state.base_pose_world[1],
                          position[0] - state.base_pose_world[0])
     yaw = physics.object_pose(_OBJECT)[5]
@@ -258,10 +274,8 @@ def _push_poses(physics: PhysicsWorld, state: RobotState, position: Sequence[flo
     direction = np.array([math.cos(bearing), math.sin(bearing), 0.0])
     height = min(float(position[2]), float(position[2]) - half[2] + rise_m)
     centre = np.array([float(position[0]), float(position[1]), height])
-    touch = centre - (depth + FINGER_REACH_M) * direction  # tool where the tips meet the face
     rotation = np.asarray(pin.rpy.rpyToMatrix(0.0, 0.0, bearing))
-    return (pin.SE3(rotation, touch - PUSH_CLEARANCE_M * direction),
-            pin.SE3(rotation, touch + PUSH_STROKE_M * direction), bearing)
+    return pin.SE3(rotation, centre - (depth + FINGER_REACH_M) * direction), bearing
 
 
 def unfolded(state: RobotState, arms: Sequence[Arm]) -> RobotState:
@@ -321,25 +335,82 @@ def approach(world: DynamicWorld, goal: RobotState, arm: Arm, target: pin.SE3,
     return states
 
 
-def _near(world: DynamicWorld, state: RobotState, arm: Arm, target: pin.SE3, scene: Scene,
-          rng: np.random.Generator) -> Reach:
-    """IK of ``arm`` to ``target`` near ``state`` in joint space (every joint within
-    :data:`STRAIGHT_RAD`), so that the servo's straight line in joint space between them
-    stays close to the straight line of the tool: warm-started from ``state``, then with
-    restarts."""
-    answer = reach(world.kinematic, state, arm, target, scene, rng, move_torso=False,
-                   diagnose=False, restarts=0)
-    if answer.state is None:
-        answer = reach(world.kinematic, state, arm, target, scene, rng, move_torso=False)
-    if answer.state is None:
-        return answer
-    jump = max(abs(_wrap(a - b)) for a, b in zip(answer.state.q_arm_rad[arm],
-                                                state.q_arm_rad[arm], strict=True))
-    if jump > STRAIGHT_RAD:
-        return Reach(arm, None, "unreachable", f"{arm} arm: no configuration within "
-                     f"{STRAIGHT_RAD} rad of the stroke's other end puts the tool at "
-                     f"{fmt(target.translation)} m")
-    return answer
+def _stroke(world: DynamicWorld, physics: PhysicsWorld, arm: Arm, contact: RobotState,
+            touch: pin.SE3, direction: np.ndarray, scene: Scene, rng: np.random.Generator
+            ) -> tuple[list[RobotState], list[RobotState]] | None:
+    """The straight lines of a push from ``contact`` (the finger tips on the object's face,
+    the tool at ``touch``): back to the pre-push pose (:data:`PUSH_CLEARANCE_M`, at least
+    :data:`MIN_CLEARANCE_M`) and on through the object (:data:`PUSH_STROKE_M`, at least
+    :data:`MIN_STROKE_M`), each a :func:`~skillcompose.skills.dynamic_world.cartesian_path`
+    whose every step keeps the arm off the simulated table
+    (:func:`~skillcompose.skills.dynamic_world.arm_touches_table`). Returns (pre-push to
+    contact, contact to the stroke's end), or None."""
+
+    def clear(state: RobotState) -> bool:
+        return not arm_touches_table(physics, state, arm)
+
+    if not clear(contact):
+        return None
+    back = cartesian_path(world, contact, arm, pin.SE3(
+        touch.rotation, touch.translation - PUSH_CLEARANCE_M * direction), scene, rng,
+        clear=clear)
+    if not back or back[-1][1] < MIN_CLEARANCE_M - 1e-9:
+        return None
+    forward = cartesian_path(world, contact, arm, pin.SE3(
+        touch.rotation, touch.translation + PUSH_STROKE_M * direction), scene, rng,
+        step_m=STROKE_STEP_M, clear=clear)
+    if not forward or forward[-1][1] < MIN_STROKE_M - 1e-9:
+        return None
+    into = [state for state, _ in reversed(back[:-1])] + [contact]
+    return [back[-1][0], *into], [state for state, _ in forward]
+
+
+def _contacts(world: DynamicWorld, state: RobotState, ready_arm: RobotState, arm: Arm,
+              touch: pin.SE3, scene: Scene, rng: np.random.Generator, *, diagnose: bool
+              ) -> Iterator[Reach]:
+    """IK answers for the tool at ``touch``, in the order a push tries them: from the arm
+    unfolded, from the arm as it is (the kinematic twin's start), then with the torso free
+    to move too (raised or lowered, as the kinematic MoveBase's reach may). The last is
+    diagnosed when ``diagnose``."""
+    for seed, torso in ((ready_arm, False), (state, False), (ready_arm, True)):
+        yield reach(world.kinematic, seed, arm, touch, scene, rng, move_torso=torso,
+                    diagnose=diagnose and torso)
+
+
+_Plan = tuple[Arm, RobotState, list[RobotState], list[RobotState], float]
+
+
+def _plan(world: DynamicWorld, physics: PhysicsWorld, bb: Blackboard, state: RobotState,
+          position: Sequence[float], arms: Sequence[Arm], rng: np.random.Generator
+          ) -> _Plan | Reach:
+    """The push's arm, its arm unfolded, its two straight lines (:func:`_stroke`) and the
+    push bearing: for each arm (the one in use first), each height of
+    :data:`PUSH_HEIGHTS_M` from the lowest, each IK start of :func:`_contacts`; else the
+    first informative IK failure."""
+    scene = scene_world(bb)
+    failure: Reach | None = None
+    for arm in arms:
+        ready_arm = unfolded(state, (arm,))
+        for k, rise in enumerate(PUSH_HEIGHTS_M):
+            touch, bearing = _touch_pose(physics, state, position, _half_extents(bb), rise)
+            direction = np.asarray(touch.rotation[:, 0], dtype=float)
+            for answer in _contacts(world, state, ready_arm, arm, touch, scene, rng,
+                                    diagnose=failure is None
+                                    and k == len(PUSH_HEIGHTS_M) - 1):
+                if answer.state is None:
+                    if failure is None or failure.reason == "unreachable":
+                        failure = answer
+                    continue
+                contact = RobotState(answer.state.base_pose_world,
+                                     answer.state.torso_height_m, answer.state.q_arm_rad,
+                                     state.held, arm)
+                lines = _stroke(world, physics, arm, contact, touch, direction, scene, rng)
+                if lines is not None:
+                    return arm, ready_arm, lines[0], lines[1], bearing
+    if failure is None:
+        failure = Reach(arms[0], None, "collision", f"{arms[0]} arm: every straight stroke "
+                        "through the object brings the arm onto the table")
+    return failure
 
 
 def _push(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator
@@ -352,39 +423,27 @@ def _push(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator
     arm = state.arm_in_use or arms_for(state, position)[0]
     if state.held[arm] is not None:
         return fail(bb, "already_holding", f"Push: the {arm} gripper holds {state.held[arm]!r}")
+    other: Arm = "right" if arm == "left" else "left"
+    arms = (arm, other) if state.held[other] is None else (arm,)
+    plan = _plan(world, physics, bb, state, position, arms, rng)
+    if isinstance(plan, Reach):
+        return fail(bb, plan.reason, f"Push: {plan.detail}")
+    arm, ready_arm, into, through, bearing = plan
+    ready = into[0]
     scene = scene_world(bb)
-    ready_arm = unfolded(state, (arm,))
-    for k, rise in enumerate(PUSH_HEIGHTS_M):
-        last = k == len(PUSH_HEIGHTS_M) - 1
-        start, end, bearing = _push_poses(physics, state, position, _half_extents(bb), rise)
-        second = reach(world.kinematic, ready_arm, arm, end, scene, rng, move_torso=False,
-                       diagnose=False)
-        if second.state is None:  # the kinematic twin's start: the arm as it is
-            second = reach(world.kinematic, state, arm, end, scene, rng, move_torso=False,
-                           diagnose=last)
-        if second.state is None:
-            if last:
-                return fail(bb, second.reason, f"Push (stroke): {second.detail}")
-            continue
-        first = _near(world, second.state, arm, start, scene, rng)
-        if first.state is not None:
-            break
-        if last:
-            return fail(bb, first.reason, f"Push (pre-push): {first.detail}")
-    assert first.state is not None and second.state is not None  # the loop ends so
-    ready = RobotState(first.state.base_pose_world, first.state.torso_height_m,
-                       first.state.q_arm_rad, first.state.held, arm)
     was = np.array(physics.object_pose(_OBJECT)[:3])
     physics.close_gripper(arm)
     unfold(physics, state, (arm,))
     motions: list[tuple[str, Motion]] = []
     at = ready_arm
-    for waypoint in (*approach(world, ready, arm, start, scene, rng), ready):
+    target = tool_world(world, ready, arm)
+    waypoints = [w for w in approach(world, ready, arm, target, scene, rng)
+                 if not arm_touches_table(physics, w, arm)]
+    for waypoint in (*waypoints, ready):
         motions.extend(execute(world, physics, at, waypoint).motions)
         at = waypoint
-    stroke = max(1.0, (PUSH_CLEARANCE_M + PUSH_STROKE_M) / PUSH_SPEED_M_S)
-    motions.append((arm, physics.track_arm(arm, second.state.q_arm_rad[arm], stroke)))
-    motions.append((arm, physics.track_arm(arm, ready.q_arm_rad[arm], stroke)))
+    for path in (into[1:], through, [*reversed(through[:-1]), *reversed(into)]):
+        motions.extend((arm, m) for m in follow_path(physics, arm, path, PUSH_SPEED_M_S))
     now = sync(physics, bb, planned=ready, world_keys=object_keys)
     if judge_motion(physics, bb, "Push", ready, Execution(tuple(motions), {}, {}), now):
         return "failure"
