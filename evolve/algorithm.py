@@ -38,9 +38,10 @@ from .budgets import checks_due, checks_episodes, next_generation, overrun, stop
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
 from .evaluation import EvalLimits
-from .export import SeedNames, best_fsa, exporter, finish, named, unchanged
+from .export import SeedNames, exporter, finish, unchanged
 from .generation import cost, evaluate, record
 from .genome import Genome
+from .listeners import OnGeneration, RunDirWriter, RunListener
 from .operators import initialize
 from .plan import Plan, check_arguments, make_plan
 from .progress import Progress
@@ -52,7 +53,6 @@ from .state import RunState
 
 __all__ = ["evolve"]
 
-_PLOT_EVERY_S = 30.0  # redraw best.png / fitness.png at checkpoints at most this often
 
 
 def evolve(
@@ -211,24 +211,22 @@ def _generations(
     """Algorithm 1's loop, until the task is solved or a budget spent: breed (each child
     goes to the evaluator as it is born), evaluate, record, and check a solution before
     stopping. The last generation's fitness; ``run.stopped_by`` says what ended it."""
-    task, cfg, rundir = run.task, run.cfg, run.rundir
+    task, cfg = run.task, run.cfg
     run.stopped_by = stop_reason(run, fitness) or ""
     if run.stopped_by:
         return fitness
-    last_plot = time.perf_counter()
+    # persistence (the run directory's), progress (the command line's), the caller's own
+    listeners: list[RunListener] = [
+        *([RunDirWriter(run.rundir)] if run.rundir is not None else []),
+        Progress(plan.stream), *([OnGeneration(on_generation)] if on_generation else [])]
 
     def bred() -> None:  # runs as the last child is born, while the pool evaluates
-        nonlocal last_plot
-        if rundir is not None and run.generation % cfg.checkpoint_every == 0:
-            rundir.save_checkpoint(run.checkpoint())
-            if time.perf_counter() - last_plot > _PLOT_EVERY_S:  # drawing is slow
-                rundir.plots([r.to_dict() for r in run.history], named(run, best_fsa(run)))
-                last_plot = time.perf_counter()
+        for listener in listeners:
+            listener.bred(run)
 
     limits = EvalLimits(cfg.eval_time_limit, cfg.worker_max_jobs, cfg.worker_max_growth_mb)
     evaluator = make_evaluator(plan.backend, task, plan.skills, plan.workers,
                                cfg.chunks_per_worker, limits, islands=cfg.islands)
-    progress = Progress(plan.stream)
     stop = _checks(run, fitness) if fitness is not None and run.checks_pending else None
     try:
         while stop is None:
@@ -244,13 +242,13 @@ def _generations(
             fitness, episodes = evaluate(run, evaluator, children)
             _check_not_all_lost(run)
             rec = record(run, fitness, episodes, time.perf_counter() - t)
-            progress.show(run, rec)
-            if on_generation is not None:
-                on_generation(rec)
+            for listener in listeners:
+                listener.generation(run, rec)
             stop = _checks(run, fitness)
     finally:
         evaluator.close()
-        progress.close(run)
+        for listener in listeners:
+            listener.close(run)
     run.stopped_by = stop
     return fitness
 

@@ -16,7 +16,6 @@ from typing import Any
 
 from .breeding import next_size, note_islands
 from .evaluation import Evaluator, Job
-from .export import best_fsa, header, named
 from .genome import Genome
 from .result import GenerationRecord
 from .state import EVAL_STREAM, RunState, fold
@@ -114,8 +113,8 @@ def evaluate(
 def record(
     run: RunState, fitness: list[float], episodes: int, gen_time: float
 ) -> GenerationRecord:
-    """Note the generation: its statistics, the run's best (written to ``best.yaml`` when it
-    improved), its faults, each island's progress, and its line of ``history.jsonl``."""
+    """Note the generation: its statistics, the run's best (``run.best``, with this
+    generation's index when it improved), its faults and each island's progress."""
     sizes = [len(g) for g in run.population]
     bi = min(range(len(fitness)), key=lambda i: (*run.rank_key(fitness[i], sizes[i]), i))
     bf = fitness[bi]
@@ -141,10 +140,5 @@ def record(
     )
     run.fault_totals.add(run.gen_faults)
     note_islands(run, fitness)
-    run.history.append(rec)
-    if run.rundir is not None:
-        run.rundir.append_history(rec.to_dict())
-        if improved:
-            run.rundir.write_best(named(run, best_fsa(run)), run.task.registry,
-                                  header(run))
+    run.history.append(rec)  # the run directory writes it (listeners.RunDirWriter)
     return rec

@@ -66,6 +66,12 @@ class Progress:
             self.stream.write(line + "\n")
             self.stream.flush()
 
+    def bred(self, run: RunState) -> None:
+        """A listener of the loop (:mod:`skillcompose.evolve.listeners`): nothing to show."""
+
+    def generation(self, run: RunState, rec: GenerationRecord) -> None:
+        self.show(run, rec)
+
     def close(self, run: RunState) -> None:
         if self._bar is None and run.history:  # a log ends with the last generation
             self.show(run, run.history[-1], final=True)
