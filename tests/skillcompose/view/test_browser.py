@@ -220,8 +220,12 @@ def test_replay_active_state_follows_the_trace(viewer: Viewer, runs_dir: Path,
             return active() == (s, [f"{s}{sk}"])
 
         wait_for(shown, what=f"step {k}: {state}")
-        assert page.page.get_by_test_id("step-label").inner_text().startswith(
-            f"step {k} of {len(states)}: {state} ")
+        wanted = f"step {k} of {len(states)}: {state} "  # the label may follow the graph
+
+        def labelled(text: str = wanted) -> bool:
+            return page.page.get_by_test_id("step-label").inner_text().startswith(text)
+
+        wait_for(labelled, what=f"the label of step {k}")
     assert page.page.get_by_test_id("forward").is_disabled()
     page.page.get_by_test_id("back").click()
     wait_for(lambda: active()[0] == states[-2], what="one step back")
