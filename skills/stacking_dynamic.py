@@ -14,8 +14,12 @@ and the blackboard's object positions are written from the simulation after ever
 - ``GraspParam(which)``: a tucked arm first unfolds (above the table, so that the IK starts
   from there); the kinematic twin plans the grasp (side, else top); the arm passes a
   pre-grasp pose :data:`PRE_GRASP_M` back along the approach (and one above that), so the
-  open fingers come straight onto the object, then the fingers close and hold it by
-  friction. ``failure``: the kinematic reasons, ``missed`` (the fingers closed on nothing or
+  open fingers come straight onto the object (a straight tool line solved backwards from
+  the plan, :func:`~skillcompose.skills.dynamic_world.cartesian_path`, each step clear of
+  the simulated table), then the fingers close and hold it by friction. A joint-space
+  motion on the way whose line would drag the arm over the table's edge goes over it with
+  the shoulder lifted (:func:`clear_transits`; also for MoveGripperToStack).
+  ``failure``: the kinematic reasons, ``missed`` (the fingers closed on nothing or
   on the other object), ``blocked`` (a motion did not reach its goal), ``hit_table``.
 - ``MoveGripperToStack(which, dx, dy, dz)``: the kinematic plan, reached by lifting the
   gripper :data:`LIFT_M` straight up, then to :data:`LIFT_M` above the goal, then down.
@@ -39,6 +43,7 @@ What physics produces (a slip, a topple, a collision with the table) ends as an 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from itertools import pairwise
 from pathlib import Path
 from typing import Any, Literal
 
@@ -55,6 +60,8 @@ from skillcompose.skills import stacking_kinematic
 from skillcompose.skills.dynamic_world import (
     DynamicSkill,
     DynamicWorld,
+    arm_touches_table,
+    cartesian_path,
     dynamic_twin,
     in_dynamic_world,
     sync,
@@ -84,7 +91,9 @@ __all__ = [
     "PRE_GRASP_M",
     "REST_S",
     "check_success",
+    "clear_transits",
     "grasp_param",
+    "line_touches_table",
     "move_gripper_to_stack",
     "open_gripper",
     "register",
@@ -106,6 +115,18 @@ NEAR_RAD = 0.8
 """A waypoint is this close to the next in every joint [rad], at most."""
 REST_S = 2.0
 """Simulated time a released object is given to come to rest [s]."""
+TRANSIT_SAMPLES = 10
+"""A joint-space motion between waypoints is checked against the simulated table at this
+many points along it."""
+RAISE_RAD = (0.0, 0.3, 0.6)
+"""A motion whose joint-space line touches the table goes first to its goal with the
+shoulder lifted: by these amounts above the higher of its two ends [rad], the first clear."""
+SHOULDER_LIFT = 1
+"""The shoulder lift's index among an arm's joints (larger: lower)."""
+SHOULDER_LIFT_MIN_RAD = -0.5
+CONTINUOUS = (4, 6)
+"""The continuous joints' indices among an arm's joints (forearm and wrist roll), which
+turn the short way round."""
 
 
 # -- the episode -------------------------------------------------------------------------------
@@ -156,6 +177,70 @@ def _near(world: DynamicWorld, state: RobotState, arm: str, target: pin.SE3, bb:
                       answer.state.q_arm_rad, state.held, state.arm_in_use)
 
 
+def _with_arm(state: RobotState, arm: Arm, q: Sequence[float]) -> RobotState:
+    return RobotState(state.base_pose_world, state.torso_height_m,
+                      {**state.q_arm_rad, arm: tuple(q)}, state.held, state.arm_in_use)
+
+
+def line_touches_table(physics: PhysicsWorld, a: RobotState, b: RobotState, arm: Arm, *,
+                       samples: int = TRANSIT_SAMPLES) -> bool:
+    """Whether ``arm`` touches the simulated table somewhere on the servo's straight line in
+    joint space from ``a`` to ``b`` (at ``b``'s base and torso; the ends excluded)."""
+    qa, qb = a.q_arm_rad[arm], b.q_arm_rad[arm]
+    delta = [_wrap(y - x) if j in CONTINUOUS else y - x
+             for j, (x, y) in enumerate(zip(qa, qb, strict=True))]
+    for k in range(1, samples):
+        t = k / samples
+        q = [x + t * d for x, d in zip(qa, delta, strict=True)]
+        if arm_touches_table(physics, _with_arm(b, arm, q), arm):
+            return True
+    return False
+
+
+def _wrap(angle: float) -> float:
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def clear_transits(physics: PhysicsWorld, arm: Arm, start: RobotState,
+                   waypoints: Sequence[RobotState]) -> list[RobotState]:
+    """``waypoints`` (from ``start``), with configurations inserted before each whose
+    joint-space motion touches the simulated table that take the arm over it with the
+    shoulder lifted (:func:`_over`); the waypoint left as it is when there are none."""
+    out: list[RobotState] = []
+    at = start
+    for goal in waypoints:
+        if line_touches_table(physics, at, goal, arm):
+            out.extend(_over(physics, arm, at, goal))
+        out.append(goal)
+        at = goal
+    return out
+
+
+def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState
+          ) -> list[RobotState]:
+    """The configurations to pass from ``start`` to ``goal`` over the table: ``goal``'s
+    joints with the shoulder lifted (:data:`RAISE_RAD`), else ``start``'s lifted and then
+    ``goal``'s, the first whose motions are all clear of the simulated table (but for
+    lifting off it, when ``start`` touches it); none when there is no such."""
+    for extra in RAISE_RAD:
+        lift = max(SHOULDER_LIFT_MIN_RAD, min(start.q_arm_rad[arm][SHOULDER_LIFT],
+                                              goal.q_arm_rad[arm][SHOULDER_LIFT]) - extra)
+        raised = []
+        for end in (start, goal):
+            q = list(end.q_arm_rad[arm])
+            q[SHOULDER_LIFT] = lift
+            raised.append(_with_arm(goal, arm, q))
+        for via in ([raised[1]], raised):
+            if any(arm_touches_table(physics, s, arm) for s in via):
+                continue
+            legs = list(pairwise([start, *via, goal]))
+            if len(via) == 2 and arm_touches_table(physics, start, arm):
+                legs = legs[1:]  # lifting off the table it touches already
+            if not any(line_touches_table(physics, a, b, arm) for a, b in legs):
+                return via
+    return []
+
+
 def _grasp_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
                before: RobotState, planned: RobotState) -> Sequence[RobotState]:
     """GraspParam's waypoints: :data:`PRE_GRASP_M` back along the approach, and
@@ -167,12 +252,42 @@ def _grasp_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
     back = grasp.translation - PRE_GRASP_M * grasp.rotation[:, 0]
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
                       before.held, planned.arm_in_use)
-    pre = _near(world, keep, arm, pin.SE3(grasp.rotation, back), bb, rng)
+    line = _straight_back(world, bb, rng, keep, arm, pin.SE3(grasp.rotation, back))
+    pre = line[0] if line else _near(world, keep, arm, pin.SE3(grasp.rotation, back), bb, rng)
     if pre is None:
         return ()
     up = np.array([0.0, 0.0, LIFT_M])
     high = _near(world, pre, arm, pin.SE3(grasp.rotation, back + up), bb, rng)
-    return (high, pre) if high is not None else (pre,)
+    via = [high, *line] if high is not None else [*line] if line else [pre]
+    return _transit(world, arm, before, via, planned)
+
+
+def _transit(world: DynamicWorld, arm: Arm, before: RobotState, via: Sequence[RobotState],
+             planned: RobotState) -> Sequence[RobotState]:
+    """``via`` with the clear transits (:func:`clear_transits`) on the way from ``before``
+    to ``planned``, the plan itself left out."""
+    if world.physics is None:
+        return via
+    keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
+                      before.held, planned.arm_in_use)
+    return clear_transits(world.physics, arm, before, [*via, keep])[:-1]
+
+
+def _straight_back(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+                   planned: RobotState, arm: Arm, pre: pin.SE3) -> list[RobotState]:
+    """The robots on the straight line from the pre-grasp pose ``pre`` to the planned grasp,
+    the plan's own configuration excluded (solved backwards from it, so that the line ends
+    in it), each clear of the simulated table
+    (:func:`~skillcompose.skills.dynamic_world.arm_touches_table`); empty when the whole
+    line has no such solutions."""
+    physics = world.physics
+    if physics is None:
+        return []
+    path = cartesian_path(world, planned, arm, pre, scene_world(bb), rng,
+                          clear=lambda s: not arm_touches_table(physics, s, arm))
+    if not path or path[-1][1] < PRE_GRASP_M - 1e-6:
+        return []
+    return [s for s, _ in reversed(path)]
 
 
 def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
@@ -195,7 +310,7 @@ def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
                            before.held, before.arm_in_use)
     lifted = _near(world, lift_from, arm, pin.SE3(start.rotation, start.translation + up), bb,
                    rng)
-    return tuple(s for s in (lifted, above) if s is not None)
+    return _transit(world, arm, before, [s for s in (lifted, above) if s is not None], planned)
 
 
 def _unfold(physics: PhysicsWorld, bb: Blackboard, rng: np.random.Generator,

@@ -13,9 +13,15 @@ pytest.importorskip("mujoco")
 
 from skillcompose import Blackboard, compile_fsa, load_fsa
 from skillcompose.executor import trial_rngs
+from skillcompose.robots.model import ARMS
 from skillcompose.skills import stacking_dynamic as sd
-from skillcompose.skills.dynamic_world import DYNAMIC_FAILURE_REASONS, world_of
-from skillcompose.skills.kinematic_world import FAILURE_REASONS
+from skillcompose.skills.dynamic_world import (
+    DYNAMIC_FAILURE_REASONS,
+    arm_touches_table,
+    world_of,
+)
+from skillcompose.skills.kinematic_world import FAILURE_REASONS, read_state
+from skillcompose.skills.move_to_push_dynamic import unfolded
 from skillcompose.skills.stacking_world import stacked
 from skillcompose.task import Task, load_task
 
@@ -60,6 +66,27 @@ def test_a_grasped_box_is_carried_and_rests_on_the_other() -> None:
     assert bb[f"held_object_{arm}"] is None and stacked(bb)
     assert all(world.physics.upright(n) for n in bb["object_positions_world"])
     assert _call(task, bb, rng, "CheckSuccess") == "success"
+
+
+def test_a_transit_through_the_table_goes_over_it() -> None:
+    # scene 9: the joint-space line to the grasp's first waypoint passes the upper arm
+    # through the table's edge; the arm goes with its shoulder lifted first
+    task, bb, rng = _scene(9)
+    world = world_of(task.registry)
+    assert world is not None and world.physics is not None
+    assert _call(task, bb, rng, "RecogniseObject") == "success"
+    assert _call(task, bb, rng, "MoveToReach") == "success"
+    before = unfolded(read_state(bb), ARMS)
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    arm = bb["arm_in_use"]
+    assert world.physics.held_object(arm) == bb["grasp_target"]
+    planned = read_state(bb)
+    route = sd.clear_transits(world.physics, arm, before, [planned])
+    assert route[-1] is planned and len(route) <= 3
+    assert not any(arm_touches_table(world.physics, s, arm) for s in route[:-1])
+    if len(route) > 1:  # inserted only where the direct motion touches the table
+        assert sd.line_touches_table(world.physics, before, planned, arm)
 
 
 def test_a_box_too_wide_for_the_fingers_is_an_outcome() -> None:
