@@ -330,7 +330,9 @@ def _alive(pid: int) -> bool:
 def test_no_worker_survives_a_kill_9_of_the_evolving_process(tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "skillcompose.evolve.cli", "evolve", *TOY, "--population", "200",
+        # p_fail 1: no FSA can solve it, so the run is still going when it is killed
+        [sys.executable, "-m", "skillcompose.evolve.cli", "evolve", "examples.toy_task",
+         "--set", "p_fail=1.0", "--population", "200",
          "--generations", "100000", "--backend", "process", "--workers", "2", "--quiet",
          "--out", str(tmp_path / "run")],
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
@@ -552,7 +554,7 @@ def test_the_progress_line_shows_the_best_evaluation_so_far() -> None:
     assert "best 0.5 (this generation 0.8," in line
 
 
-@pytest.mark.slow  # evolves for a few seconds before the Ctrl-C
+@pytest.mark.slow  # evolves (p_fail 1: never solved) for a few seconds before the Ctrl-C
 def test_ctrl_c_on_the_process_group_gives_one_line(tmp_path: Path) -> None:
     """Ctrl-C reaches every process of the group: the pool's workers used to print
     'Process ForkProcess-1:' and a traceback each before the command's one line."""
@@ -560,7 +562,7 @@ def test_ctrl_c_on_the_process_group_gives_one_line(tmp_path: Path) -> None:
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "skillcompose", "evolve", "examples.toy_task", "--preset",
-         "paper", "--set", "p_fail=0.6", "--population", "4000", "--generations", "1000",
+         "paper", "--set", "p_fail=1.0", "--population", "4000", "--generations", "1000",
          "--workers", "2", "--out", str(tmp_path / "run")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
