@@ -564,7 +564,10 @@ def test_ctrl_c_on_the_process_group_gives_one_line(tmp_path: Path) -> None:
         [sys.executable, "-m", "skillcompose", "evolve", "examples.toy_task", "--preset",
          "paper", "--set", "p_fail=1.0", "--population", "4000", "--generations", "1000",
          "--workers", "2", "--out", str(tmp_path / "run")],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        # as a terminal starts it: a pytest started in the background of a script ignores
+        # SIGINT, and a child that starts so never gets Python's KeyboardInterrupt
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.time() + 60
         while time.time() < deadline and not (tmp_path / "run" / "checkpoint.json").exists():
