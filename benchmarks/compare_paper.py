@@ -200,8 +200,14 @@ def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: i
         reach_file="" if reach is None else
         f"{reach[0].relative_to(ROOT) if reach[0].is_relative_to(ROOT) else reach[0].name} "
         f"({reach[1]})",
-        fsa=dumps_fsa(fsa, task.registry),
+        fsa=_relative(dumps_fsa(fsa, task.registry)),
     )
+
+
+def _relative(text: str) -> str:
+    """``text`` with the repository's paths written relative to it (a nested file's path in
+    the FSA's ``task_settings``), so the rows name no folder of the machine that ran them."""
+    return text.replace(str(ROOT) + os.sep, "")
 
 
 def best_reach(rows: Sequence[Row], world: str, out: Path) -> Reach | None:
