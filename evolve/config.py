@@ -194,6 +194,17 @@ _ISLANDS: dict[str, Any] = {  # the robust preset, its population on islands
 
 _HOLDS: dict[str, Any] = {"require_holds": True}  # "solved" is the statement of holds.py
 
+_DETERMINISTIC: dict[str, Any] = {
+    "population": 30,
+    "elitism": 2,
+    "tournament": 5,
+    "initial_nodes": 12,
+    "param_sigma": 0.1,
+    "cache": True,
+    "unique_children": True,
+    **_HOLDS,
+}
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
     "robust": {**_ROBUST, **_HOLDS},
@@ -208,28 +219,12 @@ PRESETS: dict[str, dict[str, Any]] = {
         "confirm_candidates": 5,
         **_HOLDS,
     },
-    "deterministic": {
-        "population": 30,
-        "elitism": 2,
-        "tournament": 5,
-        "initial_nodes": 12,
-        "param_sigma": 0.1,
-        "cache": True,
-        "unique_children": True,
-        **_HOLDS,
-    },
+    "deterministic": _DETERMINISTIC,
     "adaptive": {  # the deterministic preset, restarted larger whenever it stalls
-        "population": 30,
-        "elitism": 2,
-        "tournament": 5,
-        "initial_nodes": 12,
-        "param_sigma": 0.1,
-        "cache": True,
-        "unique_children": True,
+        **_DETERMINISTIC,
         "restart_patience": 100,
         "restart_growth": 4,
         "population_max": 1920,
-        **_HOLDS,
     },
     "push": {
         "population": 150,
