@@ -24,7 +24,7 @@ at four times real time; ``strip.png`` shows at most 16 of them, evenly spaced.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -98,15 +98,8 @@ def replay(
     # the run first, then the pictures, all from one camera that shows every step
     steps = [(robot_pose(bb), world_scene(bb), "start", out / "step_00.png")]
     run = compiled.start(bb, rng, trace=True)
-    status = RUNNING
-    while status == RUNNING:
-        status = run.tick()
-        trace = run.trace or ()
-        if not trace:
-            break
-        last = trace[-1]
-        title = f"step {last.step}: {last.state} ({last.skill}) -> {last.outcome}"
-        steps.append((robot_pose(bb), world_scene(bb), title,
+    for last in _steps(run):
+        steps.append((robot_pose(bb), world_scene(bb), _title(last),
                       out / f"step_{last.step:02d}.png"))
     camera = scene_camera(model, [pose for pose, *_ in steps], steps[0][1])
     frames = [render_configuration(model, pose, path, scene=scene, title=title, camera=camera)
@@ -114,6 +107,20 @@ def replay(
     result = run.result
     return Replay(result.outcome, result.steps, tuple(frames), _strip(frames, out / "strip.png"),
                   _gif(frames, out / "replay.gif"))
+
+
+def _steps(run: Any) -> Iterator[Any]:
+    """Tick ``run`` to its end, giving the trace's last step after each tick."""
+    status = RUNNING
+    while status == RUNNING:
+        status = run.tick()
+        if not run.trace:
+            return
+        yield run.trace[-1]
+
+
+def _title(step: Any) -> str:
+    return f"step {step.step}: {step.state} ({step.skill}) -> {step.outcome}"
 
 
 def _replay_dynamic(task: Any, compiled: Any, rng: Any, out: Path, every_s: float) -> Replay:
@@ -131,16 +138,9 @@ def _replay_dynamic(task: Any, compiled: Any, rng: Any, out: Path, every_s: floa
         bb = task.setup(rng)
         run = compiled.start(bb, rng, trace=True)
         steps: list[tuple[float, str]] = []  # (simulated time at its end, title)
-        status = RUNNING
-        while status == RUNNING:
-            status = run.tick()
-            trace = run.trace or ()
-            if not trace:
-                break
-            last = trace[-1]
+        for last in _steps(run):
             ended = world.physics.time_s if world.physics is not None else 0.0
-            steps.append((ended, f"step {last.step}: {last.state} ({last.skill}) -> "
-                                 f"{last.outcome}"))
+            steps.append((ended, _title(last)))
     finally:
         world.recorder = None
     model = load_pr2()
