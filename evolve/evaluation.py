@@ -110,6 +110,12 @@ class Faults:
     def total(self) -> int:
         return self.raised + self.timeouts + self.lost + self.worker_deaths
 
+    def add_episode(self, code: int) -> None:
+        """Count one episode's fault code, as :func:`iter_episodes` gives it: an episode
+        that raised, or one that ran past the limit (counted among ``timeouts``)."""
+        self.raised += code >> _FLAGS
+        self.timeouts += code & TIMED_OUT
+
     def add(self, other: Faults) -> None:
         for name in ("jobs", "failed", "raised", "timeouts", "lost", "worker_deaths",
                      "recycled"):

@@ -13,9 +13,11 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from skillcompose import FSA
 
-from .evaluation import Guard, Job, evaluate_job
+from .evaluation import Faults, Guard, error_summary, iter_episodes
 from .genome import Genome
 from .holds import FreshCheck, holds_test, required_rate
 from .state import CONFIRM_STREAM, RunState, fold
@@ -55,14 +57,30 @@ def confirm(run: RunState, fitness: list[float]) -> bool:
 def confirmation(run: RunState, g: Genome, worlds: tuple[int, ...]) -> tuple[bool, float, int]:
     """Run ``g`` on the ``confirm_trials`` worlds drawn from ``worlds`` (one world on a
     deterministic task): whether it passes (its mean at the target, or, with
-    ``confirm_rate``, that share of the episodes), its mean, and the episodes run."""
+    ``confirm_rate``, that share of the episodes), its mean, and the episodes run.
+
+    Each episode runs under ``eval_time_limit`` on its own (as a holds test's do), so a
+    confirmation of many slow episodes is not cut off as a whole; an episode that raises
+    or runs past the limit scores the task's worst fitness and is counted in the run's
+    faults (:attr:`RunState.check_faults`)."""
     task, rate = run.task, run.cfg.confirm_rate
     trials = 1 if task.deterministic else run.cfg.confirm_trials
     scores: list[float] = []
-    with Guard(run.cfg.eval_time_limit) as guard:
-        mean, _, _ = evaluate_job(task, run.compiler, Job.of(g, run.seed, worlds, trials),
-                                  guard, False, scores)
+    faults = Faults()
+    seq = np.random.SeedSequence(run.seed, spawn_key=worlds)
+    try:
+        compiled = run.compiler.compile(g)
+    except Exception as exc:  # the genome compiled for its evaluation; a skill's factory
+        scores = [task.worst] * trials  # that fails now fails every episode
+        faults.raised, faults.first_error = trials, error_summary(exc)
+    else:
+        with Guard(run.cfg.eval_time_limit) as guard:
+            for f, code in iter_episodes(task, compiled, seq, trials, guard):
+                faults.add_episode(code)
+                scores.append(f)
+    run.note_check_faults(faults)
     run.evaluations += trials
+    mean = sum(scores) / trials
     if rate > 0.0 and not task.deterministic:
         return sum(map(task.solved, scores)) >= rate * trials, mean, trials
     return task.solved(mean), mean, trials
@@ -161,14 +179,16 @@ def holds_check(run: RunState, g: Genome, k: int) -> FreshCheck:
                           max_episodes=cfg.holds_max_episodes,
                           time_limit=cfg.eval_time_limit)
 
+    def counted(check: FreshCheck) -> FreshCheck:
+        run.evaluations += check.episodes
+        run.note_check_faults(Faults(raised=check.raised, timeouts=check.timeouts))
+        return check
+
     evolved = run.compiler.fsa(g, name=f"{run.task.name}_evolved")
-    first = test(evolved, 2 * k)
-    run.evaluations += first.episodes
+    first = counted(test(evolved, 2 * k))
     if not first.passed:
         return first
-    second = test(run.export(evolved), 2 * k + 1)
-    run.evaluations += second.episodes
-    return second
+    return counted(test(run.export(evolved), 2 * k + 1))
 
 
 def demote(run: RunState, g: Genome, fitness: list[float], evaluated: float, mean: float,

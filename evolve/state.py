@@ -131,6 +131,8 @@ class RunState:
         self.first_error: str | None = None  # the run's first exception, summarised
         self.gen_faults = Faults()
         self.fault_totals = Faults()  # over the run so far, for the progress line
+        # the episodes of confirmations and holds tests that raised or ran past the limit
+        self.check_faults = Faults()
         self.t0 = time.perf_counter()
 
     # -- checkpoint ------------------------------------------------------------------------
@@ -163,6 +165,8 @@ class RunState:
             "island_best": [[f, since] for f, since in self.island_best],
             "restarts": self.restarts,
             "first_error": self.first_error,
+            "check_faults": {"raised": self.check_faults.raised,
+                             "timeouts": self.check_faults.timeouts},
             "exported": self.exported,
         }
 
@@ -222,6 +226,11 @@ class RunState:
             if first_error is not None and not isinstance(first_error, str):
                 raise TypeError("first_error is not text")
             self.first_error = first_error
+            checks = st.get("check_faults", {})  # none in older checkpoints
+            if not isinstance(checks, dict):
+                raise TypeError("check_faults is not an object")
+            self.check_faults = Faults(raised=_whole(checks.get("raised", 0)),
+                                       timeouts=_whole(checks.get("timeouts", 0)))
             self.fault_totals = self.faults()  # checks each generation's fault counts
         except CheckpointError:
             raise
@@ -282,5 +291,13 @@ class RunState:
                 if k in _FAULT_FIELDS:
                     setattr(gen, k, _whole(v))
             total.add(gen)
+        total.add(self.check_faults)
         total.first_error = self.first_error
         return total
+
+    def note_check_faults(self, faults: Faults) -> None:
+        """Count the faults of a confirmation's or a holds test's episodes in the run's."""
+        self.check_faults.add(faults)
+        self.fault_totals.add(faults)
+        if self.first_error is None and faults.first_error is not None:
+            self.first_error = f"in generation {self.generation}'s checks: {faults.first_error}"

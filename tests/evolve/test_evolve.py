@@ -405,18 +405,18 @@ def test_confirm_candidates_confirms_several_genomes_a_generation_each_once(
     candidates a generation are confirmed, each on worlds of its own, and a genome that
     failed is never confirmed again, in the same or a later generation."""
     from skillcompose.evolve import EvolutionConfigError, solution_checks
-    from skillcompose.evolve.state import CONFIRM_STREAM
+    from skillcompose.evolve.state import CONFIRM_STREAM, RunState
 
     task = _luck_task()
     confirmed: list[tuple[tuple[object, ...], tuple[int, ...]]] = []
-    evaluate_job = solution_checks.evaluate_job
+    confirmation = solution_checks.confirmation
 
-    def spy(task: Task, compiler: object, job: Job, *args: object) -> object:
-        if job.spawn_key[0] == CONFIRM_STREAM:
-            confirmed.append((job.genome, job.spawn_key))
-        return evaluate_job(task, compiler, job, *args)  # type: ignore[arg-type]
+    def spy(run: RunState, g: Genome, worlds: tuple[int, ...]) -> tuple[bool, float, int]:
+        assert worlds[0] == CONFIRM_STREAM
+        confirmed.append((g.encode(), worlds))
+        return confirmation(run, g, worlds)
 
-    monkeypatch.setattr(solution_checks, "evaluate_job", spy)
+    monkeypatch.setattr(solution_checks, "confirmation", spy)
     cfg = EvolutionConfig(population=12, initial_nodes=3, generations=20, trials=1,
                           elitism=1, cache=True, cache_refresh=1, confirm_trials=50,
                           confirm_rate=0.9, confirm_candidates=3)

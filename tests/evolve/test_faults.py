@@ -187,6 +187,55 @@ def test_a_hanging_skill_times_out_the_same_on_every_backend(tmp_path: Path) -> 
     assert info["result"]["faults"]["timeouts"] == sum(timeouts)
 
 
+def _slow_toy(slow_s: float, p_slow: float) -> Task:
+    """The toy task (p_fail 0.1) whose score takes ``slow_s`` seconds on a share ``p_slow``
+    of its worlds (drawn with the world), else 10 ms."""
+    toy = load_task("examples.toy_task", p_fail=0.1)
+
+    def setup(rng: np.random.Generator) -> Blackboard:
+        bb = toy.setup(rng)
+        bb["slow"] = bool(rng.random() < p_slow)
+        return bb
+
+    def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
+        time.sleep(slow_s if bb["slow"] else 0.01)
+        return toy.fitness(outcome, bb, steps)
+
+    return dataclasses.replace(toy, setup=setup, fitness=fitness, ref=None)
+
+
+@pytest.mark.timeout(60)  # a hang guard
+def test_a_confirmation_is_limited_episode_by_episode_not_as_a_whole() -> None:
+    """``eval_time_limit`` bounds an evaluation (one episode here); a confirmation of 60
+    episodes, each well within it, takes longer than the limit in all and still counts
+    (it used to run as one job and be cut off at the limit, scoring worst)."""
+    task = _slow_toy(0.0, 0.0)
+    cfg = SMALL.replace(confirm_trials=60, confirm_rate=0.9, eval_time_limit=0.2,
+                        generations=3)
+    result = evolve(task, cfg, seed=0, seed_fsa=TOY_SOLUTION, simplify_result=False,
+                    check_trials=0)
+    assert result.solved and result.generations == 0
+    assert result.evaluations == 16 + 60  # the generation's episodes and the confirmation's
+    assert result.faults.timeouts == 0 and result.faults.raised == 0
+
+
+@pytest.mark.timeout(60)  # a hang guard
+def test_a_confirmation_episode_past_the_limit_is_a_counted_time_out(tmp_path: Path) -> None:
+    """An episode of a confirmation that runs past the limit scores worst and is counted
+    among the run's time-outs (it used to leave no trace), in the result and, after a
+    resume, still."""
+    task = _slow_toy(0.5, 0.1)
+    cfg = SMALL.replace(confirm_trials=40, confirm_rate=0.5, eval_time_limit=0.2,
+                        generations=1)
+    result = evolve(task, cfg, seed=1, seed_fsa=TOY_SOLUTION, simplify_result=False,
+                    check_trials=0, out_dir=tmp_path / "run")
+    in_generations = sum(r.faults["timeouts"] for r in result.history)
+    assert result.faults.timeouts > in_generations
+    resumed = evolve(task, cfg.replace(generations=2), resume=tmp_path / "run",
+                     simplify_result=False, check_trials=0)
+    assert resumed.faults.timeouts >= result.faults.timeouts
+
+
 @pytest.mark.timeout(60)  # a hang guard: the stuck worker never returns unless killed
 def test_a_worker_stuck_past_the_limit_is_killed() -> None:
     """A skill the alarm cannot reach (SIGALRM blocked): the parent kills its worker after
