@@ -29,6 +29,11 @@ Settings (``make_task(**settings)``, ``--set name=value`` on the command line):
   rebuilds the task with ``make_task(p_fail=x)`` and nothing is global. The ``kinematic``
   and ``dynamic`` skills fail for a reason of the robot's (IK, a collision, a slip), never
   at random: on those backends ``p_fail`` is 0, and another value is refused.
+- ``reach`` (default ``pr2``, ``sim`` only): ``pr2``: the abstract skills pour only from a
+  pose the PR2's arm can take (the kinematic twins are asked, once per distinct pose; see
+  :mod:`skillcompose.skills.pour_robot`), so that what evolution finds on ``sim`` pours on
+  the robot too. ``free``: the abstract rule alone, any tilt in the band over the glass (no
+  robot model; about half of those rotations are out of the PR2's reach there).
 - ``trials`` (default 1): runs averaged per evaluation of an FSA.
 - ``step_limit`` (default 20, the paper's): more steps than this end a run in ``timeout``.
 
@@ -81,6 +86,7 @@ __all__ = [
     "GRIPPER_HOME_WORLD",
     "JUG_NOT_HELD_FITNESS",
     "JUG_SPOUT_WORLD",
+    "REACH",
     "fitness",
     "make_task",
     "register",
@@ -105,12 +111,20 @@ def register(registry: Registry) -> None:
     skills_pour_water.register(registry)
 
 
-def setup(rng: np.random.Generator, *, p_fail: float = DEFAULT_P_FAIL) -> Blackboard:
-    """The world of one trial: objects on the table, gripper home, water in the jug.
+REACH = ("pr2", "free")
+"""The ``reach`` setting's values: the abstract skills ask the PR2 model, or not."""
+
+
+def setup(rng: np.random.Generator, *, p_fail: float = DEFAULT_P_FAIL,
+          robot_check: bool = False) -> Blackboard:
+    """The world of one trial: objects on the table, gripper home, water in the jug; with
+    ``robot_check`` the abstract skills pour only where the PR2 can.
 
     Draws nothing from ``rng``: the world is the same in every trial.
     """
     return Blackboard({
+        "robot_check": (JUG_SPOUT_WORLD, GLASS_RIM_WORLD, GRIPPER_HOME_WORLD)
+        if robot_check else None,
         "p_fail": p_fail,
         "jug_position_world": JUG_SPOUT_WORLD,
         "glass_position_world": GLASS_RIM_WORLD,
@@ -133,7 +147,7 @@ def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
 
 def make_task(
     *, backend: str = "sim", p_fail: float | None = None, trials: int = 1,
-    step_limit: int = 20,
+    step_limit: int = 20, reach: str = "pr2",
 ) -> Task:
     """The pour-water task on ``backend`` (``sim``, ``kinematic`` or ``dynamic``); see the
     module's docstring for the settings. ``p_fail`` defaults to the paper's 0.2 on ``sim``
@@ -156,6 +170,17 @@ def make_task(
             f"pour_water: setting p_fail={p_fail!r} is the sim backend's random failure; the "
             f"{backend} skills fail for the robot's reasons (IK, collisions, physics), never "
             "at random: leave p_fail out (it is 0 there) or run backend=sim"
+        )
+    if reach not in REACH:
+        raise TaskError(
+            f"pour_water: setting reach={reach!r} must be one of {', '.join(REACH)}, "
+            "e.g. reach=free"
+        )
+    if backend != "sim" and reach != "pr2":
+        raise TaskError(
+            f"pour_water: setting reach={reach!r} chooses how the sim backend's abstract "
+            f"skills pour; the {backend} skills are the robot: leave reach out or run "
+            "backend=sim"
         )
     for name, value in (("trials", trials), ("step_limit", step_limit)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -182,12 +207,16 @@ def make_task(
 
             kinematic.register(registry)
 
+        check = backend == "sim" and reach == "pr2"
+
         def world(rng: np.random.Generator) -> Blackboard:
-            return setup(rng, p_fail=p)
+            return setup(rng, p_fail=p, robot_check=check)
 
     settings: dict[str, Any] = {"p_fail": p, "trials": trials, "step_limit": step_limit}
     if backend != "sim":
         settings = {"backend": backend, **settings}
+    elif reach != "pr2":
+        settings["reach"] = reach
     return Task(
         name="pour_water",
         registry=registry,

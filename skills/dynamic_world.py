@@ -226,6 +226,15 @@ def _changed(a: float, b: float) -> bool:
     return abs(_wrap(a - b)) > 1e-4
 
 
+def _lift_torso(physics: PhysicsWorld, before: RobotState, after: RobotState,
+                out: list[tuple[str, Motion]]) -> None:
+    """Move the torso to ``after``'s height when the plan changed it from ``before``'s."""
+    if abs(after.torso_height_m - before.torso_height_m) > 1e-4:
+        duration = max(MIN_MOTION_S,
+                       abs(after.torso_height_m - physics.torso_m()) / TORSO_SPEED_M_S)
+        out.append(("torso", physics.move_torso(after.torso_height_m, duration)))
+
+
 def execute(world: DynamicWorld, physics: PhysicsWorld, before: RobotState,
             after: RobotState, *, route: BaseRoute | None = None,
             bb: Blackboard | None = None) -> Execution:
@@ -255,15 +264,18 @@ def execute(world: DynamicWorld, physics: PhysicsWorld, before: RobotState,
                                         **({} if last else {"settle_s": 0.0}))
             if last:  # a leg on the way is not judged: the servo lags it by design
                 motions.append(("base", motion))
-    torso = physics.torso_m()
-    if abs(after.torso_height_m - before.torso_height_m) > 1e-4:
-        duration = max(MIN_MOTION_S, abs(after.torso_height_m - torso) / TORSO_SPEED_M_S)
-        motions.append(("torso", physics.move_torso(after.torso_height_m, duration)))
+    torso: list[tuple[str, Motion]] = []
+    lowers = after.torso_height_m < before.torso_height_m - 1e-4
+    if not lowers:
+        _lift_torso(physics, before, after, torso)
     for arm in ARMS:
         now = physics.arm_q(arm)
         goal = after.q_arm_rad[arm]
         if any(_changed(g, b) for g, b in zip(goal, before.q_arm_rad[arm], strict=True)):
             motions.append((arm, physics.track_arm(arm, goal, _arm_duration(now, goal))))
+    if lowers:
+        _lift_torso(physics, before, after, torso)
+    motions[1 if motions and motions[0][0] == "base" else 0:0] = torso  # base, torso, arms
     grasped: dict[Arm, str | None] = {}
     released: dict[Arm, str | None] = {}
     for arm in ARMS:
@@ -285,26 +297,31 @@ def tool_world(world: DynamicWorld, state: RobotState, arm: Arm,
 
 
 def arm_touches_table(physics: PhysicsWorld, state: RobotState, arm: Arm, *,
-                      gap_m: float = TABLE_GAP_M) -> tuple[str, ...]:
+                      gap_m: float = TABLE_GAP_M, objects: Sequence[str] = ()
+                      ) -> tuple[str, ...]:
     """The links of ``arm`` (shoulder to finger tips) that come within ``gap_m`` of the table
-    in the physics model itself when the robot is at ``state`` (base, torso, that arm's
-    joints; the rest as simulated now): the check the kinematic world's sphere model cannot
-    make for the links it does not cover (the shoulder's housing). Moves nothing: it poses
-    a copy of the simulation's state."""
+    (or of one of ``objects``, as they stand now) in the physics model itself when the robot
+    is at ``state`` (base, torso, that arm's joints; the rest as simulated now): the check
+    the kinematic world's sphere model cannot make for the links it does not cover (the
+    shoulder's housing), nor for the objects, which its scene leaves out. Moves nothing: it
+    poses a copy of the simulation's state."""
     compiled = physics.physics
-    if compiled.table_body is None:
+    if compiled.table_body is None and not objects:
         return ()
     model = compiled.model
     cache = _TABLE_CHECK.get(id(model))
     if cache is None or cache[0] is not model:
-        table = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) ==
-                 compiled.table_body]
+        bodies: dict[int, list[int]] = {}
+        for g in range(model.ngeom):
+            bodies.setdefault(int(model.geom_bodyid[g]), []).append(g)
         links = {a: [g for g in compiled.robot_geoms if
                      model.body(int(model.geom_bodyid[g])).name.startswith(f"{a[0]}_")]
                  for a in ARMS}
-        cache = (model, mujoco.MjData(model), table, links)
+        cache = (model, mujoco.MjData(model), bodies, links)
         _TABLE_CHECK[id(model)] = cache
-    _, data, table, links = cache
+    _, data, bodies, links = cache
+    others = [g for name in objects for g in bodies.get(compiled.object_body[name], [])]
+    table = bodies.get(compiled.table_body, []) if compiled.table_body is not None else []
     data.qpos[:] = physics.data.qpos
     x, y, yaw = state.base_pose_world
     for name, value in (("base_x", x), ("base_y", y), ("base_yaw", yaw),
@@ -314,13 +331,14 @@ def arm_touches_table(physics: PhysicsWorld, state: RobotState, arm: Arm, *,
     mujoco.mj_kinematics(model, data)
     near: set[str] = set()
     for g in links[arm]:
-        for t in table:
+        for t in (*table, *others):
             if mujoco.mj_geomDistance(model, data, g, t, gap_m, None) < gap_m:
                 near.add(model.body(int(model.geom_bodyid[g])).name)
+                break
     return tuple(sorted(near))
 
 
-_TABLE_CHECK: dict[int, tuple[Any, Any, list[int], dict[Arm, list[int]]]] = {}
+_TABLE_CHECK: dict[int, tuple[Any, Any, dict[int, list[int]], dict[Arm, list[int]]]] = {}
 
 
 def _off_line(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:

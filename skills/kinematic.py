@@ -96,7 +96,7 @@ from skillcompose.skills.kinematic_world import (
 )
 from skillcompose.skills.move_to_push import SAFETY_M, base_in_room, network_goal, weights_parameter
 from skillcompose.skills.network import Topology
-from skillcompose.skills.pour_water import (
+from skillcompose.skills.pour_geometry import (
     APPROACH_OFFSET_M,
     APPROACH_TOLERANCE_M,
     WORKSPACE_WORLD,

@@ -85,7 +85,7 @@ from skillcompose.robots.model import (
     load_pr2,
 )
 from skillcompose.skill import SkillFn
-from skillcompose.skills.pour_water import POUR_TILT_MAX_RAD, POUR_TILT_MIN_RAD, pours_into_glass
+from skillcompose.skills.pour_geometry import POUR_TILT_MAX_RAD, POUR_TILT_MIN_RAD, pours_into_glass
 
 __all__ = [
     "ARM_IN_USE_KEY",

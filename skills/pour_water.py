@@ -19,6 +19,10 @@ key                          meaning (written by the task's ``setup`` unless sai
 ``water``                    where the water is: ``"jug"``, ``"glass"`` or ``"spilled"``
 ``jug_location_world``       where RecogniseObject saw the jug (absent until then) [m]
 ``glass_location_world``     where RecogniseObject saw the glass (absent until then) [m]
+``robot_check``              the episode's starting world (the jug's spout, the glass's
+                             rim, the gripper's home), when the abstract skills pour only
+                             where the PR2 can (see "The robot" below); absent or ``None``:
+                             the abstract rule alone
 ============================ ==============================================================
 
 Positions and rotations are plain ``(x, y, z)`` float tuples: these skills run millions of
@@ -40,6 +44,13 @@ about z, applied in that order about the fixed axes — is ``arccos(cos ρ · co
 the paper is the box of positions above times the band of tilts, with θ free. Water moves
 whenever the held jug's pose changes: after a rotation, a move and a grasp.
 
+The robot. With ``robot_check`` set (the task's default, ``reach=pr2``), a pose that would
+pour into the glass is taken only if the PR2's arm can take it:
+:func:`skillcompose.skills.pour_robot.pr2_can_pour` runs the kinematic twins to that pose.
+Where it cannot, RotateGripperToParam leaves the gripper as it was (still ``success``, as
+its kinematic twin does) and MoveGripperToParam fails without moving, so the jug does not
+pour. Poses that do not pour into the glass are not checked.
+
 Randomness comes only from the run's generator ``rng``: a skill whose preconditions hold
 draws one number and fails when it is below ``p_fail``; a skill whose preconditions fail
 returns ``failure`` without drawing.
@@ -47,12 +58,31 @@ returns ``failure`` without drawing.
 
 from __future__ import annotations
 
-import math
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from skillcompose import Blackboard, BlackboardKeyError, Param, Registry, skill
+from skillcompose import Blackboard, BlackboardKeyError, Registry, skill
+from skillcompose.skills.pour_geometry import (
+    APPROACH_OFFSET_M,
+    APPROACH_TOLERANCE_M,
+    POUR_HEIGHT_MAX_M,
+    POUR_HEIGHT_MIN_M,
+    POUR_RADIUS_M,
+    POUR_TILT_MAX_RAD,
+    POUR_TILT_MIN_RAD,
+    WORKSPACE_WORLD,
+    GripperX,
+    GripperY,
+    GripperZ,
+    Pitch,
+    Roll,
+    Vec3,
+    Yaw,
+    distance,
+    pours_into_glass,
+    tilt,
+)
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -86,60 +116,7 @@ __all__ = [
     "tilt",
 ]
 
-Vec3 = tuple[float, float, float]
-
-APPROACH_TOLERANCE_M = 0.10
-"""GraspObject needs the gripper this close to the jug (the paper's 10 cm)."""
-APPROACH_OFFSET_M = 0.06
-"""MoveToObject stops this far in front of the jug (−x of the world), inside the tolerance."""
-POUR_RADIUS_M = 0.04
-"""Horizontal distance from the spout to the rim's centre that still hits the glass."""
-POUR_HEIGHT_MIN_M = 0.0
-"""The spout must not be below the rim (level with it pours; see the module docstring)."""
-POUR_HEIGHT_MAX_M = 0.15
-"""From higher than this above the rim the water splashes out."""
-POUR_TILT_MIN_RAD = math.pi / 3
-"""A held jug starts pouring at this tilt from upright."""
-POUR_TILT_MAX_RAD = 2 * math.pi / 3
-"""Beyond this tilt the water leaves through the whole mouth and misses the glass."""
-WORKSPACE_WORLD = ((0.20, 1.00), (-0.60, 0.60), (0.75, 1.50))
-"""Where MoveGripperToParam may send the gripper: (x, y, z) ranges in the world frame [m].
-The table top is at z = 0.75 m."""
-
-_X_M, _Y_M, _Z_M = WORKSPACE_WORLD
-_PI = math.pi
-
-# The parameter declarations of MoveGripperToParam and RotateGripperToParam, shared with
-# their twins on other backends (which must declare exactly the same ranges).
-GripperX = Annotated[float, Param(_X_M[0], _X_M[1], unit="m", doc="gripper x, world frame")]
-GripperY = Annotated[float, Param(_Y_M[0], _Y_M[1], unit="m", doc="gripper y, world frame")]
-GripperZ = Annotated[float, Param(_Z_M[0], _Z_M[1], unit="m", doc="gripper z, world frame")]
-Roll = Annotated[float, Param(-_PI, _PI, unit="rad", doc="roll about world x")]
-Pitch = Annotated[float, Param(-_PI, _PI, unit="rad", doc="pitch about world y")]
-Yaw = Annotated[float, Param(-_PI, _PI, unit="rad", doc="yaw about world z")]
-
 _WORLD_KEYS = ("jug_position_world", "glass_position_world", "gripper_position_world")
-
-
-def distance(a: Sequence[float], b: Sequence[float]) -> float:
-    """Euclidean distance between two points [m]."""
-    return math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
-
-
-def tilt(rotation: Sequence[float]) -> float:
-    """Angle between the gripper's z axis and the vertical for roll-pitch-yaw ``rotation``
-    [rad]: ``arccos(cos ρ · cos φ)``, in [0, π]."""
-    c = math.cos(rotation[0]) * math.cos(rotation[1])
-    return math.acos(-1.0 if c < -1.0 else 1.0 if c > 1.0 else c)
-
-
-def pours_into_glass(spout_world: Sequence[float], glass_world: Sequence[float]) -> bool:
-    """True when water leaving a spout at ``spout_world`` lands in the glass at
-    ``glass_world`` (both in the world frame [m])."""
-    dx = spout_world[0] - glass_world[0]
-    dy = spout_world[1] - glass_world[1]
-    dz = spout_world[2] - glass_world[2]
-    return dx * dx + dy * dy <= POUR_RADIUS_M**2 and POUR_HEIGHT_MIN_M <= dz <= POUR_HEIGHT_MAX_M
 
 
 def _world(bb: Blackboard, key: str, who: str) -> Vec3:
@@ -155,6 +132,27 @@ def _world(bb: Blackboard, key: str, who: str) -> Vec3:
 
 def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
     return rng.random() < bb["p_fail"]
+
+
+def _robot_can_take(bb: Blackboard, position: Vec3, rotation: Vec3) -> bool:
+    """Whether the held jug may take this pose: always, unless it would pour into the
+    glass and the robot check (``robot_check``) says the PR2's arm cannot take it."""
+    start = bb.get("robot_check")
+    if start is None or not bb["holding_jug"] or bb["water"] != "jug":
+        return True
+    t = tilt(rotation)
+    if not POUR_TILT_MIN_RAD <= t <= POUR_TILT_MAX_RAD or not pours_into_glass(
+            position, bb["glass_position_world"]):
+        return True
+    # imported here: the PR2 model loads only when a pose would pour
+    from skillcompose.skills.pour_robot import pr2_can_pour
+
+    jug, glass, home = start
+    return pr2_can_pour((_vec(jug), _vec(glass), _vec(home)), _vec(position), _vec(rotation))
+
+
+def _vec(v: Sequence[float]) -> Vec3:
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _move_water(bb: Blackboard) -> None:
@@ -240,7 +238,7 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
 
 
 @skill(
-    reads=("p_fail", "holding_jug", "gripper_rotation", "glass_position_world"),
+    reads=("p_fail", "holding_jug", "gripper_rotation", "glass_position_world", "robot_check"),
     writes=("gripper_position_world", "jug_position_world", "water"),
     backend="sim",
 )
@@ -254,11 +252,14 @@ def move_gripper_to_param(
 ) -> Literal["success", "failure"]:
     """Move the gripper to ``(x, y, z)`` in the world frame [m]; a held jug moves with it.
 
-    ``failure`` at random with ``p_fail`` (the planner found no path): nothing moves.
+    ``failure`` at random with ``p_fail`` (the planner found no path), or when the held
+    jug would pour into the glass from a pose the PR2 cannot take: nothing moves.
     """
     if _random_failure(bb, rng):
         return "failure"
     target = (x, y, z)
+    if not _robot_can_take(bb, target, bb["gripper_rotation"]):
+        return "failure"
     bb["gripper_position_world"] = target
     if bb["holding_jug"]:
         bb["jug_position_world"] = target
@@ -267,7 +268,7 @@ def move_gripper_to_param(
 
 
 @skill(
-    reads=("holding_jug", "jug_position_world", "glass_position_world"),
+    reads=("holding_jug", "jug_position_world", "glass_position_world", "robot_check"),
     writes=("gripper_rotation", "water"),
     backend="sim",
 )
@@ -282,8 +283,11 @@ def rotate_gripper_to_param(
     """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad].
 
     A held jug tilted 60°–120° with its spout over the glass pours into it; tilted that far
-    anywhere else, or further, it spills. Always ``success``.
+    anywhere else, or further, it spills. Always ``success``; a rotation that would pour
+    but that the PR2's arm cannot take leaves the gripper as it was (see the module).
     """
+    if not _robot_can_take(bb, bb["jug_position_world"], (rho, phi, theta)):
+        return "success"
     bb["gripper_rotation"] = (rho, phi, theta)
     _move_water(bb)
     return "success"

@@ -75,10 +75,10 @@ from skillcompose.skills.kinematic_world import (
     scene_world,
 )
 from skillcompose.skills.move_to_push_dynamic import (
+    UNFOLD_TORSO_M,
     base_route,
     make_move_base,
     object_keys,
-    unfold,
     unfolded,
 )
 from skillcompose.skills.network import Topology
@@ -315,12 +315,25 @@ def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
 
 def _unfold(physics: PhysicsWorld, bb: Blackboard, rng: np.random.Generator,
             params: Mapping[str, Any]) -> str | None:
-    """Before GraspParam plans: the tucked arms unfold above the table
-    (:func:`~skillcompose.skills.move_to_push_dynamic.unfold`), so that its IK starts there."""
+    """Before GraspParam plans: the tucked arms unfold above the table, so that its IK
+    starts there: the torso rises to :data:`UNFOLD_TORSO_M` first, the arms unfold, and the
+    torso goes back down only when the unfolded arms would then stay clear of the simulated
+    table (lowered onto it, the arms were pressed on the table by the torso's servo, which
+    shoved the whole base away)."""
     state = read_state(bb)
-    if unfolded(state, ARMS) != state:
-        unfold(physics, state, ARMS)
-        sync(physics, bb, planned=state, world_keys=object_keys)
+    ready = unfolded(state, ARMS)
+    if ready == state:
+        return None
+    moving = [arm for arm in ARMS if ready.q_arm_rad[arm] != state.q_arm_rad[arm]]
+    torso = physics.torso_m()
+    high = max(torso, UNFOLD_TORSO_M)
+    if high > torso:
+        physics.move_torso(high, max(0.5, (high - torso) / 0.1), settle_s=0.0)
+    for arm in moving:
+        physics.track_arm(arm, ready.q_arm_rad[arm], 1.5, settle_s=0.1)
+    if high > torso and not any(arm_touches_table(physics, ready, arm) for arm in ARMS):
+        physics.move_torso(torso, max(0.5, (high - torso) / 0.1))
+    sync(physics, bb, planned=state, world_keys=object_keys)
     return None
 
 

@@ -1,0 +1,73 @@
+"""Whether the PR2 can pour from a pose: what the abstract pour skills ask the robot model.
+
+The abstract skills of :mod:`skillcompose.skills.pour_water` would pour with any tilt in the
+band over the glass, but the PR2's arm reaches only some of those rotations at a given
+spout position (about half of the band at the glass's centre, fewer near the rim, more
+higher up; measured by running the kinematic twins). An FSA evolved on rotations the arm
+cannot take pours in the abstract world and never on the robot, so an abstract skill asks
+the robot first, as the paper's move-to-push experiment asks its reachability classifier
+(section 4.2). Here the answer is exact rather than learned: the pour world is fixed, so
+whether the robot can pour depends on the FSA's six parameters only, and an evolution run
+asks about a few hundred distinct poses (the answers are cached per process).
+
+:func:`pr2_can_pour` runs the kinematic twins (:mod:`skillcompose.skills.kinematic`) the way
+an FSA that pours does: RecogniseObject, MoveToObject, GraspObject, MoveGripperToParam to the
+spout position, RotateGripperToParam to the rotation, from the episode's starting world and
+with a fixed seed, and answers whether the gripper took that rotation there. Different
+paths to the same pose may end in other arm configurations; ``benchmarks/transfer_pour.py``
+measures how often an FSA found this way pours on the kinematic and dynamic backends.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from skillcompose import Blackboard, Registry
+from skillcompose.skills.pour_geometry import Vec3
+
+__all__ = ["CHECK_SEED", "pr2_can_pour"]
+
+CHECK_SEED = 0
+"""The seed of the IK's random restarts in the check (the answer is the same in every
+process and run)."""
+
+_PATH = ("RecogniseObject", "MoveToObject", "GraspObject")
+
+
+@functools.cache
+def _registry() -> Registry:
+    from skillcompose.skills import kinematic
+
+    registry = Registry(backend="kinematic")
+    kinematic.register(registry)
+    return registry
+
+
+@functools.lru_cache(maxsize=1 << 16)
+def pr2_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: Vec3) -> bool:
+    """Whether the PR2, from the world ``start`` (the jug's spout, the glass's rim, the
+    gripper's home, all in world [m]), grasps the jug, brings the spout to ``position`` and
+    rotates the gripper to ``rotation`` (roll, pitch, yaw [rad]) with its kinematic skills."""
+    jug, glass, home = start
+    bb = Blackboard({
+        "p_fail": 0.0, "jug_position_world": jug, "glass_position_world": glass,
+        "gripper_position_world": home, "gripper_rotation": (0.0, 0.0, 0.0),
+        "holding_jug": False, "water": "jug",
+    })
+    rng = np.random.default_rng(CHECK_SEED)
+    registry = _registry()
+    for name in _PATH:
+        if registry.resolve(name, "kinematic")(bb, rng) != "success":
+            return False
+    x, y, z = position
+    if registry.resolve("MoveGripperToParam", "kinematic")(bb, rng, x=x, y=y, z=z) \
+            != "success":
+        return False
+    rho, phi, theta = rotation
+    bb["last_failure_reason"] = None
+    registry.resolve("RotateGripperToParam", "kinematic")(bb, rng, rho=rho, phi=phi,
+                                                          theta=theta)
+    return bb.get("last_failure_reason") is None and \
+        tuple(bb["gripper_rotation"]) == tuple(rotation)

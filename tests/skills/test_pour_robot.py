@@ -1,0 +1,79 @@
+"""The abstract pour skills ask the PR2 model before they pour (``reach=pr2``, the default):
+a pose the arm cannot take pours on none of the backends, one it can take pours on all."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from examples.pour_water import GLASS_RIM_WORLD, GRIPPER_HOME_WORLD, JUG_SPOUT_WORLD
+from skillcompose import FSA, load_fsa
+from skillcompose.skills.pour_robot import pr2_can_pour
+from skillcompose.skills.pour_water import tilt
+from skillcompose.task import Task, TaskError, load_task
+
+pytestmark = pytest.mark.kinematics
+
+START = (JUG_SPOUT_WORLD, GLASS_RIM_WORLD, GRIPPER_HOME_WORLD)
+OVER_GLASS = (0.60, 0.20, 0.95)
+REFERENCE = load_fsa("examples/pour_water_reference.fsa.yaml")
+# a rotation in the pouring band that the PR2's arm cannot take over the glass (an FSA
+# evolved with the abstract rule alone pours with it on sim and never on the robot)
+OUT_OF_REACH = (1.5934543210989043, 2.658085410725043, 0.9766250258140978)
+
+
+def pouring_with(rotation: tuple[float, float, float]) -> FSA:
+    return REFERENCE.with_params("Pour", rho=rotation[0], phi=rotation[1], theta=rotation[2])
+
+
+def pours(task: Task, fsa: FSA, seed: int) -> bool:
+    return task.evaluate(task.compile(fsa), seed, 1) == 0.0
+
+
+def test_the_check_answers_as_the_kinematic_skills_do() -> None:
+    assert pr2_can_pour(START, OVER_GLASS, (0.0, math.pi / 2, 0.0))
+    assert not pr2_can_pour(START, OVER_GLASS, OUT_OF_REACH)
+    assert not pr2_can_pour(START, (1.0, 0.60, 0.75), (0.0, math.pi / 2, 0.0))  # too far
+
+
+def test_a_rotation_out_of_reach_pours_on_sim_only_with_the_abstract_rule() -> None:
+    fsa = pouring_with(OUT_OF_REACH)
+    sim = load_task("examples.pour_water", p_fail=0.0)
+    free = load_task("examples.pour_water", p_fail=0.0, reach="free")
+    kinematic = load_task("examples.pour_water", backend="kinematic")
+    assert pours(free, fsa, 0)
+    assert not pours(sim, fsa, 0)
+    assert not pours(kinematic, fsa, 0)
+    assert pours(sim, REFERENCE, 0) and pours(kinematic, REFERENCE, 0)
+    # the gripper stays as it was: the water is still in the jug, not spilled
+    bb = sim.setup(np.random.default_rng(0))
+    sim.compile(fsa).run(bb, np.random.default_rng(0))
+    assert bb["water"] == "jug" and bb["gripper_rotation"] == (0.0, 0.0, 0.0)
+
+
+def test_sim_and_the_pr2_model_agree_on_random_pouring_rotations() -> None:
+    """Rotations drawn in the pouring band over the glass (about half of them out of the
+    arm's reach): the abstract skills pour exactly when the kinematic ones do."""
+    sim = load_task("examples.pour_water", p_fail=0.0)
+    kinematic = load_task("examples.pour_water", backend="kinematic")
+    rng = np.random.default_rng(7)
+    answers = []
+    while len(answers) < 40:
+        r = rng.uniform(-math.pi, math.pi, 3)
+        if not math.pi / 3 <= tilt(r) <= 2 * math.pi / 3:
+            continue
+        fsa = pouring_with((float(r[0]), float(r[1]), float(r[2])))
+        answers.append((pours(sim, fsa, len(answers)), pours(kinematic, fsa, len(answers))))
+    assert all(a == b for a, b in answers)
+    assert 5 < sum(a for a, _ in answers) < 35  # both kinds were drawn
+
+
+def test_the_reach_setting_is_checked() -> None:
+    with pytest.raises(TaskError, match=r"reach='arm' must be one of pr2, free"):
+        load_task("examples.pour_water", reach="arm")
+    with pytest.raises(TaskError, match=r"reach='free' chooses how the sim backend"):
+        load_task("examples.pour_water", backend="kinematic", reach="free")
+    assert load_task("examples.pour_water", reach="free").settings["reach"] == "free"
+    assert "reach" not in load_task("examples.pour_water").settings
