@@ -59,12 +59,13 @@ def test_sim_and_the_pr2_model_agree_on_random_pouring_rotations() -> None:
     sim = load_task("examples.pour_water", p_fail=0.0)
     kinematic = load_task("examples.pour_water", backend="kinematic")
     rng = np.random.default_rng(7)
-    answers = []
+    answers: list[tuple[bool, bool]] = []
     while len(answers) < 40:
-        r = rng.uniform(-math.pi, math.pi, 3)
+        r = (float(rng.uniform(-math.pi, math.pi)), float(rng.uniform(-math.pi, math.pi)),
+             float(rng.uniform(-math.pi, math.pi)))
         if not math.pi / 3 <= tilt(r) <= 2 * math.pi / 3:
             continue
-        fsa = pouring_with((float(r[0]), float(r[1]), float(r[2])))
+        fsa = pouring_with(r)
         answers.append((pours(sim, fsa, len(answers)), pours(kinematic, fsa, len(answers))))
     assert all(a == b for a, b in answers)
     assert 5 < sum(a for a, _ in answers) < 35  # both kinds were drawn
