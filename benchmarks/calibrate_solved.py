@@ -10,6 +10,7 @@ run used), and counts how many of the runs called solved reach r there::
     python benchmarks/calibrate_solved.py --quick --out /tmp/c  # a look in under a minute
     python benchmarks/calibrate_solved.py --tasks pour_water toy --seeds 20
     python benchmarks/calibrate_solved.py --append --tasks stacking   # add to the report
+    python benchmarks/calibrate_solved.py --append --redo pour_water  # after a task changed
 
 Each run is saved in ``solved_runs.json`` as it ends; ``--append`` keeps the rows there and
 runs only the (task, seed) pairs not yet in it, so a long calibration can be stopped and
@@ -82,6 +83,7 @@ class Row:
     recheck_episodes: int
     recheck_rate: float
     recheck_upper: float  # the recheck's own 95 % upper bound
+    settings: dict[str, Any] | None = None  # the task's settings as run (older rows: none)
 
     @property
     def held(self) -> bool:
@@ -113,7 +115,21 @@ def run_case(case: Case, seed: int, recheck: int, workers: int,
     return Row(case.name, seed, result.solved, result.solved_by, task.success_rate,
                result.generations, result.evaluations, wall,
                lower if isinstance(lower, float) else None, fresh["episodes"],
-               fresh["success_rate"], again.upper)
+               fresh["success_rate"], again.upper, dict(task.settings))
+
+
+def _current(row: Row) -> bool:
+    """Whether a saved run is of the task as it is now configured (a row that recorded
+    other settings is dropped by ``--append`` and run again)."""
+    if row.settings is None:
+        return True
+    case = CASES[row.task]
+    now = dict(load_task(case.module, **case.settings).settings)
+    if row.settings != now:
+        print(f"{row.task} seed {row.seed}: saved with settings {row.settings}, the task "
+              f"now has {now}: run again", file=sys.stderr)
+        return False
+    return True
 
 
 def _load() -> str:
@@ -208,6 +224,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     p.add_argument("--append", action="store_true",
                    help="keep the runs already in OUT/solved_runs.json and run only the others")
+    p.add_argument("--redo", nargs="+", choices=list(CASES), default=[], metavar="TASK",
+                   help="with --append: drop the saved runs of these tasks and run them "
+                        "again (after a change to the task's worlds or skills)")
     args = p.parse_args(argv)
     if args.quick:
         args.tasks, args.seeds, args.recheck = ["toy"], 2, 200
@@ -216,6 +235,7 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[Row] = []
     if args.append and saved.is_file():
         rows = [Row(**r) for r in json.loads(saved.read_text(encoding="utf-8"))]
+        rows = [r for r in rows if r.task not in args.redo and _current(r)]
     done = {(r.task, r.seed) for r in rows}
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.tasks:

@@ -215,7 +215,7 @@ def make_task(
     settings: dict[str, Any] = {"p_fail": p, "trials": trials, "step_limit": step_limit}
     if backend != "sim":
         settings = {"backend": backend, **settings}
-    elif reach != "pr2":
+    else:
         settings["reach"] = reach
     return Task(
         name="pour_water",

@@ -537,8 +537,10 @@ def dynamic_twin(
         if outcome != "success":
             return str(outcome)
         planned = read_state(bb)
+        waypoints = via(world, bb, rng, before, planned) if via is not None else ()
+        planned = read_state(bb)  # a via may refine the plan (the same goal, another way)
         at = before
-        for waypoint in via(world, bb, rng, before, planned) if via is not None else ():
+        for waypoint in waypoints:
             execute(world, physics, at, waypoint, route=route, bb=bb)  # aids, not judged
             at = waypoint
         done = execute(world, physics, at, planned, route=route, bb=bb)

@@ -42,6 +42,7 @@ What physics produces (a slip, a topple, a collision with the table) ends as an 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from itertools import pairwise
 from pathlib import Path
@@ -51,6 +52,7 @@ import numpy as np
 import pinocchio as pin
 
 from skillcompose import Blackboard, Registry
+from skillcompose.robots.collision import Scene
 from skillcompose.robots.model import ARMS, Arm
 from skillcompose.robots.physics import PhysicsWorld
 from skillcompose.robots.physics_model import ObjectSpec, SceneSpec
@@ -69,7 +71,10 @@ from skillcompose.skills.dynamic_world import (
 from skillcompose.skills.kinematic_world import (
     TABLE_KEY,
     TOOL_KEYS,
+    TORSO_RANGE_M,
     RobotState,
+    commit,
+    object_box,
     reach,
     read_state,
     scene_world,
@@ -111,6 +116,9 @@ PRE_GRASP_M = 0.09
 LIFT_M = 0.10
 """MoveGripperToStack lifts the gripper this far before it moves, and comes down this far
 onto its goal [m]."""
+CLEAR_M = 0.03
+"""A held object is lifted until its bottom is this far above the other objects' tops [m]
+before it is carried across (:func:`_lift_m`)."""
 NEAR_RAD = 0.8
 """A waypoint is this close to the next in every joint [rad], at most."""
 REST_S = 2.0
@@ -124,6 +132,14 @@ shoulder lifted: by these amounts above the higher of its two ends [rad], the fi
 SHOULDER_LIFT = 1
 """The shoulder lift's index among an arm's joints (larger: lower)."""
 SHOULDER_LIFT_MIN_RAD = -0.5
+HOP_TORSO_M = TORSO_RANGE_M[1]
+"""A motion that cannot pass over the table with the shoulder lifted passes with the torso
+raised this high [m] (:func:`_hop`) ..."""
+HOP_MIN_M = 0.05
+"""... when that is at least this much above both its ends [m]."""
+REGRASP_TRIES = 8
+"""GraspParam: when no straight approach line ends in the kinematic plan's configuration,
+this many other IK solutions of the pre-grasp pose are tried as its start (:func:`_regrasp`)."""
 CONTINUOUS = (4, 6)
 """The continuous joints' indices among an arm's joints (forearm and wrist roll), which
 turn the short way round."""
@@ -183,18 +199,30 @@ def _with_arm(state: RobotState, arm: Arm, q: Sequence[float]) -> RobotState:
 
 
 def line_touches_table(physics: PhysicsWorld, a: RobotState, b: RobotState, arm: Arm, *,
-                       samples: int = TRANSIT_SAMPLES) -> bool:
-    """Whether ``arm`` touches the simulated table somewhere on the servo's straight line in
-    joint space from ``a`` to ``b`` (at ``b``'s base and torso; the ends excluded)."""
+                       samples: int = TRANSIT_SAMPLES, objects: Sequence[str] = ()) -> bool:
+    """Whether ``arm`` touches the simulated table (or one of ``objects``) somewhere on the
+    motion from ``a`` to ``b`` as :func:`~skillcompose.skills.dynamic_world.execute` makes
+    it (at ``b``'s base; the ends excluded): the servo's straight line in joint space, at
+    ``b``'s torso when the torso rises (it rises first) and at ``a``'s when it lowers (it
+    lowers last), and the torso's own vertical motion, each checked at ``samples`` points."""
     qa, qb = a.q_arm_rad[arm], b.q_arm_rad[arm]
     delta = [_wrap(y - x) if j in CONTINUOUS else y - x
              for j, (x, y) in enumerate(zip(qa, qb, strict=True))]
-    for k in range(1, samples):
-        t = k / samples
-        q = [x + t * d for x, d in zip(qa, delta, strict=True)]
-        if arm_touches_table(physics, _with_arm(b, arm, q), arm):
-            return True
-    return False
+    za, zb = a.torso_height_m, b.torso_height_m
+    lowers = zb < za
+    inner = [k / samples for k in range(1, samples)]
+
+    def at(q: Sequence[float], z: float) -> RobotState:
+        return dataclasses.replace(_with_arm(b, arm, q), torso_height_m=z)
+
+    arm_line = [at([x + t * d for x, d in zip(qa, delta, strict=True)], za if lowers else zb)
+                for t in inner] if any(abs(d) > 1e-9 for d in delta) else []
+    torso_line = [at(qb if lowers else qa, za + t * (zb - za)) for t in inner] \
+        if abs(zb - za) > 1e-9 else []
+    corner = [at(qb, za) if lowers else at(qa, zb)] if arm_line and torso_line else []
+    poses = [*arm_line, *corner, *torso_line] if lowers else \
+        [*torso_line, *corner, *arm_line]
+    return any(arm_touches_table(physics, s, arm, objects=objects) for s in poses)
 
 
 def _wrap(angle: float) -> float:
@@ -202,26 +230,35 @@ def _wrap(angle: float) -> float:
 
 
 def clear_transits(physics: PhysicsWorld, arm: Arm, start: RobotState,
-                   waypoints: Sequence[RobotState]) -> list[RobotState]:
-    """``waypoints`` (from ``start``), with configurations inserted before each whose
-    joint-space motion touches the simulated table that take the arm over it with the
-    shoulder lifted (:func:`_over`); the waypoint left as it is when there are none."""
+                   waypoints: Sequence[RobotState], *, objects: Sequence[str] = ()
+                   ) -> list[RobotState]:
+    """``waypoints`` (from ``start``), with configurations inserted before each whose motion
+    touches the simulated table (or one of ``objects``): over it with the shoulder lifted
+    (:func:`_over`), else over it with the torso raised (:func:`_hop`); the waypoint left as
+    it is when there are none."""
     out: list[RobotState] = []
     at = start
     for goal in waypoints:
-        if line_touches_table(physics, at, goal, arm):
-            out.extend(_over(physics, arm, at, goal))
+        if line_touches_table(physics, at, goal, arm, objects=objects):
+            out.extend(_over(physics, arm, at, goal, objects)
+                       or _hop(physics, arm, at, goal, objects))
         out.append(goal)
         at = goal
     return out
 
 
-def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState
-          ) -> list[RobotState]:
+def _touches(physics: PhysicsWorld, state: RobotState, arm: Arm,
+             objects: Sequence[str]) -> bool:
+    return bool(arm_touches_table(physics, state, arm, objects=objects))
+
+
+def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
+          objects: Sequence[str] = ()) -> list[RobotState]:
     """The configurations to pass from ``start`` to ``goal`` over the table: ``goal``'s
     joints with the shoulder lifted (:data:`RAISE_RAD`), else ``start``'s lifted and then
-    ``goal``'s, the first whose motions are all clear of the simulated table (but for
-    lifting off it, when ``start`` touches it); none when there is no such."""
+    ``goal``'s, the first whose motions are all clear of the simulated table and
+    ``objects`` (but for lifting off it, when ``start`` touches it); none when there is no
+    such."""
     for extra in RAISE_RAD:
         lift = max(SHOULDER_LIFT_MIN_RAD, min(start.q_arm_rad[arm][SHOULDER_LIFT],
                                               goal.q_arm_rad[arm][SHOULDER_LIFT]) - extra)
@@ -231,69 +268,151 @@ def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState
             q[SHOULDER_LIFT] = lift
             raised.append(_with_arm(goal, arm, q))
         for via in ([raised[1]], raised):
-            if any(arm_touches_table(physics, s, arm) for s in via):
+            if any(_touches(physics, s, arm, objects) for s in via):
                 continue
             legs = list(pairwise([start, *via, goal]))
-            if len(via) == 2 and arm_touches_table(physics, start, arm):
+            if len(via) == 2 and _touches(physics, start, arm, objects):
                 legs = legs[1:]  # lifting off the table it touches already
-            if not any(line_touches_table(physics, a, b, arm) for a, b in legs):
+            if not any(line_touches_table(physics, a, b, arm, objects=objects)
+                       for a, b in legs):
                 return via
     return []
+
+
+def _hop(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
+         objects: Sequence[str] = ()) -> list[RobotState]:
+    """The configurations to pass from ``start`` to ``goal`` with the torso raised to the
+    top (:data:`HOP_TORSO_M`): the torso rises (the whole arm straight up), the arm moves up
+    there, and the torso comes down onto ``goal`` (straight down); none when the torso is
+    not :data:`HOP_MIN_M` higher so, or a motion on the way touches the simulated table or
+    ``objects`` (lifting off what ``start`` touches aside)."""
+    top = HOP_TORSO_M
+    if top - max(start.torso_height_m, goal.torso_height_m) < HOP_MIN_M:
+        return []
+    up = dataclasses.replace(_with_arm(goal, arm, start.q_arm_rad[arm]), torso_height_m=top)
+    across = dataclasses.replace(goal, torso_height_m=top)
+    if _touches(physics, up, arm, objects) or _touches(physics, across, arm, objects):
+        return []
+    if line_touches_table(physics, up, across, arm, objects=objects) or \
+            line_touches_table(physics, across, goal, arm, objects=objects):
+        return []
+    return [up, across]
+
+
+def _others(bb: Blackboard, target: str | None) -> tuple[str, ...]:
+    """The stacking objects other than ``target`` and those held: what an arm must not
+    touch on the way."""
+    state = read_state(bb)
+    held_now = {state.held[a] for a in ARMS}
+    return tuple(str(n) for n in bb.get("object_positions_world") or {}
+                 if n != target and n not in held_now)
+
+
+def _avoid_scene(bb: Blackboard, objects: Sequence[str]) -> Scene:
+    positions = bb.get("object_positions_world") or {}
+    return scene_world(bb, [object_box(bb, n, positions[n]) for n in objects])
 
 
 def _grasp_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
                before: RobotState, planned: RobotState) -> Sequence[RobotState]:
     """GraspParam's waypoints: :data:`PRE_GRASP_M` back along the approach, and
-    :data:`LIFT_M` above that, each near the next in joint space."""
+    :data:`LIFT_M` above that, each near the next in joint space; the approach's straight
+    line clear of the table and of the other object. When no such line ends in the plan's
+    configuration, another configuration of the same grasp pose that has one
+    (:func:`_regrasp`) replaces the plan on the blackboard."""
     arm = _moved_arm(before, planned)
     if arm is None:
         return ()
     grasp = _tool(bb, arm)
+    avoid = _others(bb, bb.get("grasp_target"))
     back = grasp.translation - PRE_GRASP_M * grasp.rotation[:, 0]
+    pre_pose = pin.SE3(grasp.rotation, back)
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
                       before.held, planned.arm_in_use)
-    line = _straight_back(world, bb, rng, keep, arm, pin.SE3(grasp.rotation, back))
-    pre = line[0] if line else _near(world, keep, arm, pin.SE3(grasp.rotation, back), bb, rng)
+    line = _straight_back(world, bb, rng, keep, arm, pre_pose, avoid)
+    if not line:
+        found = _regrasp(world, bb, rng, keep, arm, grasp, pre_pose, avoid)
+        if found is not None:
+            keep, line = found
+            commit(world.kinematic, bb, dataclasses.replace(keep, held=planned.held))
+    pre = line[0] if line else _near(world, keep, arm, pre_pose, bb, rng)
     if pre is None:
         return ()
     up = np.array([0.0, 0.0, LIFT_M])
     high = _near(world, pre, arm, pin.SE3(grasp.rotation, back + up), bb, rng)
-    via = [high, *line] if high is not None else [*line] if line else [pre]
-    return _transit(world, arm, before, via, planned)
+    via = [*([high] if high is not None else []), *(line or [pre])]
+    return _transit(world, arm, before, via, keep, avoid)
 
 
 def _transit(world: DynamicWorld, arm: Arm, before: RobotState, via: Sequence[RobotState],
-             planned: RobotState) -> Sequence[RobotState]:
+             planned: RobotState, objects: Sequence[str] = ()) -> Sequence[RobotState]:
     """``via`` with the clear transits (:func:`clear_transits`) on the way from ``before``
     to ``planned``, the plan itself left out."""
     if world.physics is None:
         return via
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
                       before.held, planned.arm_in_use)
-    return clear_transits(world.physics, arm, before, [*via, keep])[:-1]
+    return clear_transits(world.physics, arm, before, [*via, keep], objects=objects)[:-1]
 
 
 def _straight_back(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
-                   planned: RobotState, arm: Arm, pre: pin.SE3) -> list[RobotState]:
+                   planned: RobotState, arm: Arm, pre: pin.SE3,
+                   objects: Sequence[str] = ()) -> list[RobotState]:
     """The robots on the straight line from the pre-grasp pose ``pre`` to the planned grasp,
     the plan's own configuration excluded (solved backwards from it, so that the line ends
-    in it), each clear of the simulated table
+    in it), each clear of the simulated table and ``objects``
     (:func:`~skillcompose.skills.dynamic_world.arm_touches_table`); empty when the whole
     line has no such solutions."""
     physics = world.physics
     if physics is None:
         return []
-    path = cartesian_path(world, planned, arm, pre, scene_world(bb), rng,
-                          clear=lambda s: not arm_touches_table(physics, s, arm))
+    path = cartesian_path(world, planned, arm, pre, _avoid_scene(bb, objects), rng,
+                          clear=lambda s: not _touches(physics, s, arm, objects))
     if not path or path[-1][1] < PRE_GRASP_M - 1e-6:
         return []
     return [s for s, _ in reversed(path)]
 
 
+def _regrasp(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+             planned: RobotState, arm: Arm, grasp: pin.SE3, pre: pin.SE3,
+             objects: Sequence[str] = ()) -> tuple[RobotState, list[RobotState]] | None:
+    """Another configuration of ``planned``'s arm for the grasp pose ``grasp`` (torso and
+    base kept), reached on a straight line from the pre-grasp pose ``pre``: IK of ``pre``
+    warm-started from :data:`REGRASP_TRIES` random arms (the run's generator), each followed
+    by the straight line onto ``grasp``, every step clear of the simulated table and
+    ``objects``; ``(grasp configuration, the line's robots before it)``, or None."""
+    physics = world.physics
+    if physics is None:
+        return None
+    scene = _avoid_scene(bb, objects)
+    chain = world.kinematic.chains[arm]
+
+    def clear(s: RobotState) -> bool:
+        return not _touches(physics, s, arm, objects)
+
+    for _ in range(REGRASP_TRIES):
+        start = _with_arm(planned, arm, chain.sample_coordinates(rng)[1:])
+        answer = reach(world.kinematic, start, arm, pre, scene, rng, move_torso=False,
+                       diagnose=False, restarts=0)
+        if answer.state is None:
+            continue
+        first = RobotState(planned.base_pose_world, planned.torso_height_m,
+                           answer.state.q_arm_rad, planned.held, planned.arm_in_use)
+        if not clear(first):
+            continue
+        path = cartesian_path(world, first, arm, grasp, scene, rng, clear=clear)
+        if not path or path[-1][1] < PRE_GRASP_M - 1e-6:
+            continue
+        return path[-1][0], [first, *(s for s, _ in path[:-1])]
+    return None
+
+
 def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
                before: RobotState, planned: RobotState) -> Sequence[RobotState]:
-    """MoveGripperToStack's waypoints: the gripper :data:`LIFT_M` up from where it is, then
-    :data:`LIFT_M` above the goal."""
+    """MoveGripperToStack's waypoints: the gripper straight up from where it is, by
+    :data:`LIFT_M` or more (:func:`_lift_m`: a held object's bottom then clears the other
+    objects' tops), then :data:`LIFT_M` above the goal; the arm's motions clear of the
+    table and the other objects."""
     arm = _moved_arm(before, planned)
     if arm is None:
         return ()
@@ -302,15 +421,38 @@ def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
                                                   before.q_arm_rad[arm])
     x, y, yaw = before.base_pose_world
     start = pin.SE3(np.asarray(pin.rpy.rpyToMatrix(0.0, 0.0, yaw)), np.array([x, y, 0.0])) * now
-    up = np.array([0.0, 0.0, LIFT_M])
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
                       before.held, planned.arm_in_use)
-    above = _near(world, keep, arm, pin.SE3(goal.rotation, goal.translation + up), bb, rng)
+    up = np.array([0.0, 0.0, 1.0])
+    above = _near(world, keep, arm, pin.SE3(goal.rotation, goal.translation + LIFT_M * up),
+                  bb, rng)
     lift_from = RobotState(before.base_pose_world, planned.torso_height_m, before.q_arm_rad,
                            before.held, before.arm_in_use)
-    lifted = _near(world, lift_from, arm, pin.SE3(start.rotation, start.translation + up), bb,
-                   rng)
-    return _transit(world, arm, before, [s for s in (lifted, above) if s is not None], planned)
+    lifted = None
+    for lift in dict.fromkeys((_lift_m(bb, before.held[arm]), LIFT_M)):
+        lifted = _near(world, lift_from, arm,
+                       pin.SE3(start.rotation, start.translation + lift * up), bb, rng)
+        if lifted is not None:
+            break
+    return _transit(world, arm, before, [s for s in (lifted, above) if s is not None], keep,
+                    _others(bb, None))
+
+
+def _lift_m(bb: Blackboard, held_name: str | None) -> float:
+    """How far MoveGripperToStack lifts the gripper first [m]: :data:`LIFT_M`, or more when
+    the held object's bottom would not then be :data:`CLEAR_M` above every other object's
+    top (carried across at 10 cm, a 12 cm tall box swept the other off the table)."""
+    positions = bb.get("object_positions_world") or {}
+    sizes: Mapping[str, Sequence[float]] = bb.get("object_half_extents_m") or {}
+
+    def half(name: str) -> float:
+        return float(sizes.get(name, DEFAULT_HALF_EXTENTS_M)[2])
+
+    if held_name is None or held_name not in positions:
+        return LIFT_M
+    bottom = float(positions[held_name][2]) - half(held_name)
+    tops = [float(p[2]) + half(str(n)) for n, p in positions.items() if n != held_name]
+    return max([LIFT_M, *(top + CLEAR_M - bottom for top in tops)])
 
 
 def _unfold(physics: PhysicsWorld, bb: Blackboard, rng: np.random.Generator,

@@ -21,7 +21,7 @@ REFERENCE = ROOT / "examples" / "pour_water_reference.fsa.yaml"
 def test_sim_is_the_default_and_keeps_its_settings() -> None:
     task = load_task("examples.pour_water")
     assert task.backend == "sim"
-    assert dict(task.settings) == {"p_fail": 0.2, "trials": 1, "step_limit": 20}
+    assert dict(task.settings) == {"p_fail": 0.2, "trials": 1, "step_limit": 20, "reach": "pr2"}
 
 
 def test_p_fail_is_the_sim_backends_and_refused_elsewhere() -> None:

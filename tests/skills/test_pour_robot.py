@@ -77,4 +77,5 @@ def test_the_reach_setting_is_checked() -> None:
     with pytest.raises(TaskError, match=r"reach='free' chooses how the sim backend"):
         load_task("examples.pour_water", backend="kinematic", reach="free")
     assert load_task("examples.pour_water", reach="free").settings["reach"] == "free"
-    assert "reach" not in load_task("examples.pour_water").settings
+    assert load_task("examples.pour_water").settings["reach"] == "pr2"
+    assert "reach" not in load_task("examples.pour_water", backend="kinematic").settings
