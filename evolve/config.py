@@ -70,6 +70,7 @@ class EvolutionConfig:
     confirm_feedback: bool = False
     confirm_candidates: int = 0
     p_param: float = 0.0
+    p_split: float = 0.0
     islands: int = 1
     migration_interval: int = 10
     migrants: int = 2

@@ -133,10 +133,12 @@ def fix_start(g: Genome, rng: np.random.Generator) -> bool:
     return True
 
 
-def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0) -> bool:
+def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: float = 1.0,
+             split: bool = False) -> bool:
     """Figure 3: a new random node takes over one incoming edge of a node that has two or
-    more; when no node has, it takes over an edge into a terminal outcome. Returns whether
-    a node was added."""
+    more; when no node has, it takes over an edge into a terminal outcome. With ``split``
+    the new node's outcomes all lead where that edge led (its terminating outcomes stay
+    fixed), else to random targets. Returns whether a node was added."""
     if len(g.nodes) >= skills.max_nodes:  # more would not fit an FSA file
         return False
     inc = g.incoming()
@@ -153,7 +155,11 @@ def add_node(g: Genome, skills: SkillSet, rng: np.random.Generator, weight: floa
             return False
         src, o = into_terminal[int(rng.integers(len(into_terminal)))]
     new = g.new_id()
+    old = g.nodes[src].edges[o]
     node = random_node(g, skills, rng, weight, new)
+    if split:
+        node.edges = [e if skills.choices[node.skill].fixed_edge(i) is not None else old
+                      for i, e in enumerate(node.edges)]
     g.nodes[new] = node
     g.nodes[src].edges[o] = new
     g.prune()
@@ -262,8 +268,10 @@ def mutate(
                 ops.append("params")
     if fix_start(g, rng):  # before add_node prunes
         ops.append("fix-start")
-    if rng.random() < cfg.p_add and add_node(g, skills, rng, w):
-        ops.append("add")
+    if rng.random() < cfg.p_add:
+        split = cfg.p_split > 0.0 and rng.random() < cfg.p_split
+        if add_node(g, skills, rng, w, split):
+            ops.append("split" if split else "add")
     if rng.random() < cfg.p_del and delete_node(g, skills, rng, w):
         ops.append("delete")
     if rng.random() < cfg.p_mut and change_start(g, rng):

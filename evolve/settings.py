@@ -229,6 +229,13 @@ SETTINGS: tuple[Setting, ...] = (
             more="The paper's node mutation touches a node with probability {p_mut}, so a "
             "network's weights change in about one child in ten; tasks whose work is in the "
             "parameters (moving to push's network) need more: the push preset uses 1."),
+    Setting("p_split", Kind.PROBABILITY, "probability that a node added by mutation splits "
+            "the edge it takes over, its outcomes all leading where that edge led, rather "
+            "than to random targets", flag="--p-split", source="the paper",
+            zero="random edges (the paper's figure 3)",
+            more="A split, as NEAT adds a node, changes the FSA only by the new node's own "
+            "step (nothing, for a sensing skill), so a new branch can form by one later edge "
+            "mutation instead of by luck in all of the node's edges at once."),
     Setting("confirm_trials", Kind.WHOLE, "fresh trials on which a solution must reach the "
             "target too before the run stops; else its fitness becomes their mean and "
             "evolution goes on", low=0, zero="no confirmation", flag="--confirm", metavar="N",

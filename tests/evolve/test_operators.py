@@ -359,6 +359,40 @@ def test_genome_compiled_programs_also_run_tick_by_tick(toy: Task, toy_skills: S
             assert (a.outcome, a.steps, a.last_state) == (b.outcome, b.steps, b.last_state)
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=seeds, size=sizes, weight=weights)
+def test_a_split_sends_every_free_outcome_of_the_new_node_where_the_taken_edge_led(
+    toy: Task, toy_skills: SkillSet, seed: int, size: int, weight: float
+) -> None:
+    g, rng = _random(toy_skills, seed, size, weight)
+    before = {k: list(n.edges) for k, n in g.nodes.items()}
+    if not add_node(g, toy_skills, rng, weight, split=True):
+        return
+    new = g.next_id - 1
+    (src, o), = [(k, i) for k, edges in before.items() if k in g.nodes
+                 for i, t in enumerate(edges) if g.nodes[k].edges[i] != t]
+    assert g.nodes[src].edges[o] == new  # the one edge changed: it leads to the new node
+    choice = toy_skills.choices[g.nodes[new].skill]
+    for i, t in enumerate(g.nodes[new].edges):
+        fixed = choice.fixed_edge(i)
+        assert t == (before[src][o] if fixed is None else fixed)
+    _sound(g, toy_skills, toy)
+
+
+def test_p_split_zero_never_splits_and_one_always_splits(toy_skills: SkillSet) -> None:
+    """``p_split`` 0 (the paper's) adds nodes with random edges only; 1 makes every added
+    node a split."""
+    from skillcompose.evolve import EvolutionConfig
+
+    paper, split = EvolutionConfig(p_add=1.0), EvolutionConfig(p_add=1.0, p_split=1.0)
+    kinds: dict[str, set[str]] = {"paper": set(), "split": set()}
+    for seed in range(30):
+        for name, cfg in (("paper", paper), ("split", split)):
+            g, rng = _random(toy_skills, seed, 8, 1.0)
+            kinds[name] |= {op for op in mutate(g, toy_skills, rng, cfg) if op in ("add", "split")}
+    assert kinds == {"paper": {"add"}, "split": {"split"}}
+
+
 def test_genomes_never_outgrow_what_an_fsa_file_holds() -> None:
     """An FSA file holds at most MAX_STATES states and MAX_VALUES values: initialisation and
     the add mutation stop at ``SkillSet.max_nodes``."""
