@@ -240,8 +240,10 @@ def execute(world: DynamicWorld, physics: PhysicsWorld, before: RobotState,
             bb: Blackboard | None = None) -> Execution:
     """Move the simulated robot from where it is to the plan ``after`` (read from the
     blackboard a kinematic skill wrote), ``before`` being the robot it planned from: the base
-    first (through ``route``'s poses when given, with ``bb``), then the torso, then each arm
-    whose joints the plan changed; then close the fingers of an arm that the plan says now
+    first (through ``route``'s poses when given, with ``bb``), then each arm whose joints
+    the plan changed, at the higher of the two torso heights (a rising torso rises first, a
+    lowering one lowers after the arms: lowered first, it drove a held box into the table);
+    then close the fingers of an arm that the plan says now
     holds an object, or open those of an arm it says let go. Holding arms are moved before
     the others' grasps close.
 
@@ -297,14 +299,16 @@ def tool_world(world: DynamicWorld, state: RobotState, arm: Arm,
 
 
 def arm_touches_table(physics: PhysicsWorld, state: RobotState, arm: Arm, *,
-                      gap_m: float = TABLE_GAP_M, objects: Sequence[str] = ()
-                      ) -> tuple[str, ...]:
+                      gap_m: float = TABLE_GAP_M, objects: Sequence[str] = (),
+                      carried: str | None = None) -> tuple[str, ...]:
     """The links of ``arm`` (shoulder to finger tips) that come within ``gap_m`` of the table
     (or of one of ``objects``, as they stand now) in the physics model itself when the robot
     is at ``state`` (base, torso, that arm's joints; the rest as simulated now): the check
     the kinematic world's sphere model cannot make for the links it does not cover (the
-    shoulder's housing), nor for the objects, which its scene leaves out. Moves nothing: it
-    poses a copy of the simulation's state."""
+    shoulder's housing), nor for the objects, which its scene leaves out. With ``carried``
+    (an object the arm holds), that object moves with the tool as it is held now, and is
+    named too when it comes within ``gap_m`` of one of ``objects``. Moves nothing: it poses
+    a copy of the simulation's state."""
     compiled = physics.physics
     if compiled.table_body is None and not objects:
         return ()
@@ -330,12 +334,29 @@ def arm_touches_table(physics: PhysicsWorld, state: RobotState, arm: Arm, *,
         data.qpos[compiled.qpos[name]] = value
     mujoco.mj_kinematics(model, data)
     near: set[str] = set()
+    if carried is not None:
+        body, tool = compiled.object_body[carried], compiled.tool_body[arm]
+        held_in_tool = _frame(physics.data, tool).actInv(_frame(physics.data, body))
+        moved = _frame(data, tool) * held_in_tool
+        address = int(model.jnt_qposadr[model.body_jntadr[body]])
+        data.qpos[address:address + 3] = moved.translation
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, np.asarray(moved.rotation).reshape(-1))
+        data.qpos[address + 3:address + 7] = quat
+        mujoco.mj_kinematics(model, data)
+        if any(mujoco.mj_geomDistance(model, data, g, t, gap_m, None) < gap_m
+               for g in bodies.get(body, []) for t in others):
+            near.add(carried)
     for g in links[arm]:
         for t in (*table, *others):
             if mujoco.mj_geomDistance(model, data, g, t, gap_m, None) < gap_m:
                 near.add(model.body(int(model.geom_bodyid[g])).name)
                 break
     return tuple(sorted(near))
+
+
+def _frame(data: Any, body: int) -> pin.SE3:
+    return pin.SE3(np.array(data.xmat[body]).reshape(3, 3), np.array(data.xpos[body]))
 
 
 _TABLE_CHECK: dict[int, tuple[Any, Any, dict[int, list[int]], dict[Arm, list[int]]]] = {}
@@ -430,7 +451,7 @@ def sync(physics: PhysicsWorld, bb: Blackboard, *, planned: RobotState,
     bb[BASE_POSE_KEY] = base
     bb[TORSO_KEY] = physics.torso_m()
     for arm in ARMS:
-        bb[Q_KEYS[arm]] = tuple(_wrap(v) for v in q[arm])
+        bb[Q_KEYS[arm]] = _wrapped(physics, arm, q[arm])
         bb[TOOL_KEYS[arm]] = physics.tool_pose(arm)
         bb[HELD_KEYS[arm]] = held[arm]
     bb[ARM_IN_USE_KEY] = planned.arm_in_use
@@ -443,6 +464,16 @@ def sync(physics: PhysicsWorld, bb: Blackboard, *, planned: RobotState,
                 bb[key] = value
     return RobotState(base, bb[TORSO_KEY], {arm: bb[Q_KEYS[arm]] for arm in ARMS}, held,
                       planned.arm_in_use)
+
+
+def _wrapped(physics: PhysicsWorld, arm: Arm, q: Sequence[float]) -> tuple[float, ...]:
+    """``arm``'s joints as simulated, the continuous ones (no limits) wrapped to [-pi, pi]:
+    a limited joint whose range is wider than that (the upper arm roll's, -0.8 to 3.9 rad)
+    keeps its angle, which wrapped would lie outside its limits, where every IK
+    warm-started from it failed or jumped to another branch."""
+    model = physics.model
+    return tuple(_wrap(v) if not model.jnt_limited[model.joint(name).id] else float(v)
+                 for name, v in zip(ARM_JOINTS[arm], q, strict=True))
 
 
 # -- judge -------------------------------------------------------------------------------------

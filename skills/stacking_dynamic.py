@@ -11,20 +11,25 @@ starts (:func:`start_episode`: the table of ``table_world`` and both objects, bo
 kinematic twin's; the motion is physics' (:func:`~skillcompose.skills.dynamic_world.dynamic_twin`),
 and the blackboard's object positions are written from the simulation after every skill.
 
-- ``GraspParam(which)``: a tucked arm first unfolds (above the table, so that the IK starts
-  from there); the kinematic twin plans the grasp (side, else top); the arm passes a
-  pre-grasp pose :data:`PRE_GRASP_M` back along the approach (and one above that), so the
-  open fingers come straight onto the object (a straight tool line solved backwards from
-  the plan, :func:`~skillcompose.skills.dynamic_world.cartesian_path`, each step clear of
-  the simulated table), then the fingers close and hold it by friction. A joint-space
-  motion on the way whose line would drag the arm over the table's edge goes over it with
-  the shoulder lifted (:func:`clear_transits`; also for MoveGripperToStack).
-  ``failure``: the kinematic reasons, ``missed`` (the fingers closed on nothing or
-  on the other object), ``blocked`` (a motion did not reach its goal), ``hit_table``.
+- ``GraspParam(which)``: tucked arms first unfold (the torso raised, and lowered again
+  only when the unfolded arms then clear the simulated table), so that the IK starts
+  there; the kinematic twin plans the grasp (side, else top); the arm passes a pre-grasp
+  pose :data:`PRE_GRASP_M` back along the approach (and one above that), so the open
+  fingers come straight onto the object (a straight tool line solved backwards from the
+  plan, :func:`~skillcompose.skills.dynamic_world.cartesian_path`, each step clear of the
+  simulated table and the other object; when the plan's configuration has no such line,
+  another configuration of the same grasp pose that has one replaces it,
+  :func:`_regrasp`), then the fingers close and hold it by friction. A motion on the way
+  whose line would touch the table or the other object goes over it with the shoulder
+  lifted, else with the torso raised (:func:`clear_transits`; also for
+  MoveGripperToStack). ``failure``: the kinematic reasons, ``missed`` (the fingers closed
+  on nothing or on the other object), ``blocked`` (a motion did not reach its goal),
+  ``hit_table``.
 - ``MoveGripperToStack(which, dx, dy, dz)``: the kinematic plan, reached by lifting the
-  gripper :data:`LIFT_M` straight up, then to :data:`LIFT_M` above the goal, then down.
-  ``failure``: the kinematic reasons, ``dropped`` (the held object left the fingers),
-  ``blocked``, ``hit_table``.
+  gripper straight up by :data:`LIFT_M` or until the held object clears the other's top
+  (:func:`_lift_m`), then to :data:`LIFT_M` above the goal, then down; the held object is
+  checked against the other object on the way. ``failure``: the kinematic reasons,
+  ``dropped`` (the held object left the fingers), ``blocked``, ``hit_table``.
 - ``OpenGripper``: the fingers open; the released object falls and settles for
   :data:`REST_S` (2 s) before the blackboard is written. Always ``success``.
 - ``CheckSuccess``: **stacked** (``success``) when neither object is held and one rests on
@@ -67,6 +72,7 @@ from skillcompose.skills.dynamic_world import (
     dynamic_twin,
     in_dynamic_world,
     sync,
+    tool_world,
 )
 from skillcompose.skills.kinematic_world import (
     TABLE_KEY,
@@ -119,6 +125,8 @@ onto its goal [m]."""
 CLEAR_M = 0.03
 """A held object is lifted until its bottom is this far above the other objects' tops [m]
 before it is carried across (:func:`_lift_m`)."""
+LIFT_STEP_M = 0.05
+"""The lift's straight line is passed through a waypoint about this often [m]."""
 NEAR_RAD = 0.8
 """A waypoint is this close to the next in every joint [rad], at most."""
 REST_S = 2.0
@@ -199,12 +207,14 @@ def _with_arm(state: RobotState, arm: Arm, q: Sequence[float]) -> RobotState:
 
 
 def line_touches_table(physics: PhysicsWorld, a: RobotState, b: RobotState, arm: Arm, *,
-                       samples: int = TRANSIT_SAMPLES, objects: Sequence[str] = ()) -> bool:
+                       samples: int = TRANSIT_SAMPLES, objects: Sequence[str] = (),
+                       carried: str | None = None) -> bool:
     """Whether ``arm`` touches the simulated table (or one of ``objects``) somewhere on the
     motion from ``a`` to ``b`` as :func:`~skillcompose.skills.dynamic_world.execute` makes
     it (at ``b``'s base; the ends excluded): the servo's straight line in joint space, at
     ``b``'s torso when the torso rises (it rises first) and at ``a``'s when it lowers (it
-    lowers last), and the torso's own vertical motion, each checked at ``samples`` points."""
+    lowers last), and the torso's own vertical motion, each checked at ``samples`` points;
+    with ``carried``, the object the arm holds is checked against ``objects`` too."""
     qa, qb = a.q_arm_rad[arm], b.q_arm_rad[arm]
     delta = [_wrap(y - x) if j in CONTINUOUS else y - x
              for j, (x, y) in enumerate(zip(qa, qb, strict=True))]
@@ -222,7 +232,7 @@ def line_touches_table(physics: PhysicsWorld, a: RobotState, b: RobotState, arm:
     corner = [at(qb, za) if lowers else at(qa, zb)] if arm_line and torso_line else []
     poses = [*arm_line, *corner, *torso_line] if lowers else \
         [*torso_line, *corner, *arm_line]
-    return any(arm_touches_table(physics, s, arm, objects=objects) for s in poses)
+    return any(_touches(physics, s, arm, objects, carried) for s in poses)
 
 
 def _wrap(angle: float) -> float:
@@ -230,30 +240,31 @@ def _wrap(angle: float) -> float:
 
 
 def clear_transits(physics: PhysicsWorld, arm: Arm, start: RobotState,
-                   waypoints: Sequence[RobotState], *, objects: Sequence[str] = ()
-                   ) -> list[RobotState]:
+                   waypoints: Sequence[RobotState], *, objects: Sequence[str] = (),
+                   carried: str | None = None) -> list[RobotState]:
     """``waypoints`` (from ``start``), with configurations inserted before each whose motion
-    touches the simulated table (or one of ``objects``): over it with the shoulder lifted
+    touches the simulated table or one of ``objects`` (the arm, or the object it has
+    ``carried``): over it with the shoulder lifted
     (:func:`_over`), else over it with the torso raised (:func:`_hop`); the waypoint left as
     it is when there are none."""
     out: list[RobotState] = []
     at = start
     for goal in waypoints:
-        if line_touches_table(physics, at, goal, arm, objects=objects):
-            out.extend(_over(physics, arm, at, goal, objects)
-                       or _hop(physics, arm, at, goal, objects))
+        if line_touches_table(physics, at, goal, arm, objects=objects, carried=carried):
+            out.extend(_over(physics, arm, at, goal, objects, carried)
+                       or _hop(physics, arm, at, goal, objects, carried))
         out.append(goal)
         at = goal
     return out
 
 
 def _touches(physics: PhysicsWorld, state: RobotState, arm: Arm,
-             objects: Sequence[str]) -> bool:
-    return bool(arm_touches_table(physics, state, arm, objects=objects))
+             objects: Sequence[str], carried: str | None = None) -> bool:
+    return bool(arm_touches_table(physics, state, arm, objects=objects, carried=carried))
 
 
 def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
-          objects: Sequence[str] = ()) -> list[RobotState]:
+          objects: Sequence[str] = (), carried: str | None = None) -> list[RobotState]:
     """The configurations to pass from ``start`` to ``goal`` over the table: ``goal``'s
     joints with the shoulder lifted (:data:`RAISE_RAD`), else ``start``'s lifted and then
     ``goal``'s, the first whose motions are all clear of the simulated table and
@@ -268,19 +279,19 @@ def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
             q[SHOULDER_LIFT] = lift
             raised.append(_with_arm(goal, arm, q))
         for via in ([raised[1]], raised):
-            if any(_touches(physics, s, arm, objects) for s in via):
+            if any(_touches(physics, s, arm, objects, carried) for s in via):
                 continue
             legs = list(pairwise([start, *via, goal]))
-            if len(via) == 2 and _touches(physics, start, arm, objects):
+            if len(via) == 2 and _touches(physics, start, arm, objects, carried):
                 legs = legs[1:]  # lifting off the table it touches already
-            if not any(line_touches_table(physics, a, b, arm, objects=objects)
-                       for a, b in legs):
+            if not any(line_touches_table(physics, a, b, arm, objects=objects,
+                                          carried=carried) for a, b in legs):
                 return via
     return []
 
 
 def _hop(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
-         objects: Sequence[str] = ()) -> list[RobotState]:
+         objects: Sequence[str] = (), carried: str | None = None) -> list[RobotState]:
     """The configurations to pass from ``start`` to ``goal`` with the torso raised to the
     top (:data:`HOP_TORSO_M`): the torso rises (the whole arm straight up), the arm moves up
     there, and the torso comes down onto ``goal`` (straight down); none when the torso is
@@ -291,10 +302,11 @@ def _hop(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
         return []
     up = dataclasses.replace(_with_arm(goal, arm, start.q_arm_rad[arm]), torso_height_m=top)
     across = dataclasses.replace(goal, torso_height_m=top)
-    if _touches(physics, up, arm, objects) or _touches(physics, across, arm, objects):
+    if _touches(physics, up, arm, objects, carried) or \
+            _touches(physics, across, arm, objects, carried):
         return []
-    if line_touches_table(physics, up, across, arm, objects=objects) or \
-            line_touches_table(physics, across, goal, arm, objects=objects):
+    if line_touches_table(physics, up, across, arm, objects=objects, carried=carried) or \
+            line_touches_table(physics, across, goal, arm, objects=objects, carried=carried):
         return []
     return [up, across]
 
@@ -352,7 +364,8 @@ def _transit(world: DynamicWorld, arm: Arm, before: RobotState, via: Sequence[Ro
         return via
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
                       before.held, planned.arm_in_use)
-    return clear_transits(world.physics, arm, before, [*via, keep], objects=objects)[:-1]
+    return clear_transits(world.physics, arm, before, [*via, keep], objects=objects,
+                          carried=before.held[arm])[:-1]
 
 
 def _straight_back(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
@@ -391,7 +404,7 @@ def _regrasp(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
         return not _touches(physics, s, arm, objects)
 
     for _ in range(REGRASP_TRIES):
-        start = _with_arm(planned, arm, chain.sample_coordinates(rng)[1:])
+        start = _with_arm(planned, arm, [float(v) for v in chain.sample_coordinates(rng)[1:]])
         answer = reach(world.kinematic, start, arm, pre, scene, rng, move_torso=False,
                        diagnose=False, restarts=0)
         if answer.state is None:
@@ -426,32 +439,64 @@ def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
     up = np.array([0.0, 0.0, 1.0])
     above = _near(world, keep, arm, pin.SE3(goal.rotation, goal.translation + LIFT_M * up),
                   bb, rng)
-    lift_from = RobotState(before.base_pose_world, planned.torso_height_m, before.q_arm_rad,
-                           before.held, before.arm_in_use)
-    lifted = None
-    for lift in dict.fromkeys((_lift_m(bb, before.held[arm]), LIFT_M)):
-        lifted = _near(world, lift_from, arm,
-                       pin.SE3(start.rotation, start.translation + lift * up), bb, rng)
-        if lifted is not None:
-            break
-    return _transit(world, arm, before, [s for s in (lifted, above) if s is not None], keep,
-                    _others(bb, None))
+    avoid = _others(bb, None)
+    carried = before.held[arm]
+    lift = _lift_m(world.physics, bb, carried)
+    lifted = _lift_line(world, bb, rng, before, arm, lift, avoid)
+    if not lifted:
+        lift_from = RobotState(before.base_pose_world, planned.torso_height_m,
+                               before.q_arm_rad, before.held, before.arm_in_use)
+        for height in dict.fromkeys((lift, LIFT_M)):
+            near = _near(world, lift_from, arm,
+                         pin.SE3(start.rotation, start.translation + height * up), bb, rng)
+            if near is not None:
+                lifted = [near]
+                break
+    return _transit(world, arm, before, [*lifted, *([above] if above is not None else [])],
+                    keep, avoid)
 
 
-def _lift_m(bb: Blackboard, held_name: str | None) -> float:
+def _lift_line(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+               before: RobotState, arm: Arm, lift: float, objects: Sequence[str]
+               ) -> list[RobotState]:
+    """The gripper lifted straight up from where it is by ``lift`` [m] (torso and base
+    kept; :func:`~skillcompose.skills.dynamic_world.cartesian_path`, clear of the table and
+    of ``objects``, the held object with it): the robots every :data:`LIFT_STEP_M` or so on
+    the way, the top last; empty when the line does not reach :data:`LIFT_M`."""
+    physics = world.physics
+    if physics is None:
+        return []
+    start = tool_world(world, before, arm)
+    top = pin.SE3(start.rotation, start.translation + np.array([0.0, 0.0, lift]))
+    carried = before.held[arm]
+    path = cartesian_path(world, before, arm, top, Scene(()), rng,  # the table: by `clear`
+                          clear=lambda s: not _touches(physics, s, arm, objects, carried))
+    if not path or path[-1][1] < LIFT_M - 1e-6:
+        return []
+    out: list[RobotState] = []
+    done = 0.0
+    for k, (state, distance) in enumerate(path):
+        if distance - done >= LIFT_STEP_M - 1e-6 or k == len(path) - 1:
+            out.append(state)
+            done = distance
+    return out
+
+
+def _lift_m(physics: PhysicsWorld | None, bb: Blackboard, held_name: str | None) -> float:
     """How far MoveGripperToStack lifts the gripper first [m]: :data:`LIFT_M`, or more when
     the held object's bottom would not then be :data:`CLEAR_M` above every other object's
-    top (carried across at 10 cm, a 12 cm tall box swept the other off the table)."""
-    positions = bb.get("object_positions_world") or {}
+    top, as simulated (carried across at 10 cm, a 12 cm tall box swept the other off the
+    table)."""
     sizes: Mapping[str, Sequence[float]] = bb.get("object_half_extents_m") or {}
 
     def half(name: str) -> float:
         return float(sizes.get(name, DEFAULT_HALF_EXTENTS_M)[2])
 
-    if held_name is None or held_name not in positions:
+    names = [str(n) for n in bb.get("object_positions_world") or {}]
+    if physics is None or held_name is None or held_name not in names:
         return LIFT_M
-    bottom = float(positions[held_name][2]) - half(held_name)
-    tops = [float(p[2]) + half(str(n)) for n, p in positions.items() if n != held_name]
+    bottom = physics.object_pose(held_name)[2] - half(held_name)
+    tops = [physics.object_pose(n)[2] + half(n) for n in names if n != held_name]
     return max([LIFT_M, *(top + CLEAR_M - bottom for top in tops)])
 
 

@@ -4,9 +4,11 @@ outcomes, the shipped FSA stacks, and runs repeat exactly."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 pytest.importorskip("mujoco")
@@ -18,6 +20,8 @@ from skillcompose.skills import stacking_dynamic as sd
 from skillcompose.skills.dynamic_world import (
     DYNAMIC_FAILURE_REASONS,
     arm_touches_table,
+    execute,
+    sync,
     world_of,
 )
 from skillcompose.skills.kinematic_world import FAILURE_REASONS, read_state
@@ -126,3 +130,121 @@ def test_the_shipped_fsa_stacks_on_most_scenes() -> None:
 @pytest.mark.slow
 def test_same_seed_same_episode() -> None:
     assert _runs(1, first=1, trace=True) == _runs(1, first=1, trace=True)
+
+
+def _prepared(k: int) -> tuple[Task, Blackboard, np.random.Generator, Any]:
+    task, bb, rng = _scene(k)
+    world = world_of(task.registry)
+    assert world is not None and world.physics is not None
+    assert _call(task, bb, rng, "RecogniseObject") == "success"
+    assert _call(task, bb, rng, "MoveToReach") == "success"
+    return task, bb, rng, world
+
+
+def test_sync_keeps_a_limited_joints_angle_beyond_pi() -> None:
+    # the upper arm roll's limits are -0.8 to 3.9 rad: wrapped to [-pi, pi], 3.7 rad became
+    # -2.58, outside them, and every IK warm-started from the synced arm jumped or failed
+    _, bb, _, world = _prepared(1)
+    physics = world.physics
+    state = read_state(bb)
+    q = list(state.q_arm_rad["left"])
+    q[2], q[4] = 3.7, 3.0  # upper arm roll (limited); forearm roll (continuous)
+    physics.reset(base_pose_world=state.base_pose_world, torso_m=0.3,
+                  q_arm_rad={"left": q, "right": state.q_arm_rad["right"]})
+    physics.step(0.1)
+    synced = sync(physics, bb, planned=state)
+    assert synced.q_arm_rad["left"][2] == pytest.approx(3.7, abs=0.02)
+    assert -np.pi <= synced.q_arm_rad["left"][4] <= np.pi
+
+
+def test_the_arm_moves_at_the_higher_torso() -> None:
+    # lowering: the arm first, then the torso (a held box was driven into the table when
+    # the torso went down first); raising: the torso first
+    _, bb, _, world = _prepared(1)
+    physics = world.physics
+    calls: list[str] = []
+    track, torso = physics.track_arm, physics.move_torso
+
+    def on_arm(*a: Any, **k: Any) -> Any:
+        calls.append("arm")
+        return track(*a, **k)
+
+    def on_torso(*a: Any, **k: Any) -> Any:
+        calls.append("torso")
+        return torso(*a, **k)
+
+    physics.track_arm, physics.move_torso = on_arm, on_torso  # type: ignore[method-assign]
+    now = read_state(bb)
+    q = list(now.q_arm_rad["left"])
+    q[0] += 0.1
+    high = dataclasses.replace(now, torso_height_m=0.3)
+    execute(world, physics, now, high.with_arm("left", 0.3, q))
+    low = dataclasses.replace(high.with_arm("left", 0.3, q), torso_height_m=0.1)
+    done = execute(world, physics, high.with_arm("left", 0.3, q),
+                   low.with_arm("left", 0.1, now.q_arm_rad["left"]))
+    assert calls == ["torso", "arm", "arm", "torso"]
+    assert [name for name, _ in done.motions] == ["torso", "left"]
+
+
+def test_unfolding_near_the_table_leaves_the_base_where_it_is() -> None:
+    # scene 11: the base stands near the table; the unfolded arms lowered with the torso
+    # were pressed onto the table, which shoved the base 6 cm away
+    _, bb, rng, world = _prepared(11)
+    base = np.array(world.physics.base_pose())
+    assert sd._unfold(world.physics, bb, rng, {}) is None
+    assert np.abs(np.array(world.physics.base_pose()) - base).max() < 0.01
+    assert world.physics.torso_m() > 0.25  # kept up: lowered, the arms press on the table
+
+
+def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned() -> None:
+    # scene 1: from the kinematic plan's arm no straight line leads back to the pre-grasp
+    # (a joint limit); another arm for the same grasp pose has one, and the grasp holds
+    task, bb, rng, world = _prepared(1)
+    replanned: list[bool] = []
+    regrasp = sd._regrasp
+
+    def spy(*a: Any, **k: Any) -> Any:
+        found = regrasp(*a, **k)
+        replanned.append(found is not None)
+        return found
+
+    sd._regrasp = spy  # type: ignore[assignment]
+    try:
+        assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+            bb.get("last_failure_detail")
+    finally:
+        sd._regrasp = regrasp  # type: ignore[assignment]
+    assert replanned == [True]
+    arm = bb["arm_in_use"]
+    assert world.physics.held_object(arm) == bb["grasp_target"]
+
+
+def test_a_carried_box_is_lifted_above_the_other_and_the_check_sees_it() -> None:
+    # a 12 cm box carried 10 cm up swept the other off (scene 16); it goes up until its
+    # bottom clears the other's top by CLEAR_M (scene 3), and a carried object is checked
+    task, bb, rng, world = _prepared(3)
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    arm = bb["arm_in_use"]
+    carried = bb[f"held_object_{arm}"]
+    other = next(n for n in bb["object_positions_world"] if n != carried)
+    physics = world.physics
+    lift = sd._lift_m(physics, bb, carried)
+    assert physics.object_pose(carried)[2] + lift - 0.06 >= \
+        physics.object_pose(other)[2] + 0.06 + sd.CLEAR_M - 1e-9
+    assert lift > sd.LIFT_M
+    state = read_state(bb)
+    path = sd._lift_line(world, bb, rng, state, arm, lift, (other,))
+    assert path and sd.tool_world(world, path[-1], arm).translation[2] == pytest.approx(
+        sd.tool_world(world, state, arm).translation[2] + lift, abs=0.01)
+    # moved over the other at grasp height, the carried box meets it; the arm need not
+    towards = np.array(physics.object_pose(other)[:3]) - np.array(physics.object_pose(carried)[:3])
+    shifted = sd.cartesian_path(world, state, arm, pin.SE3(
+        sd.tool_world(world, state, arm).rotation,
+        sd.tool_world(world, state, arm).translation + towards * [1.0, 1.0, 0.0]),
+        sd.Scene(()), rng)
+    assert shifted
+    assert any(carried in arm_touches_table(physics, s, arm, objects=(other,), carried=carried)
+               for s, _ in shifted)
+    assert not any(carried in arm_touches_table(physics, s, arm, objects=(other,))
+                   for s, _ in shifted)
