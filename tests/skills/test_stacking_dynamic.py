@@ -173,7 +173,7 @@ def test_the_arm_moves_at_the_higher_torso() -> None:
         calls.append("torso")
         return torso(*a, **k)
 
-    physics.track_arm, physics.move_torso = on_arm, on_torso  # type: ignore[method-assign]
+    physics.track_arm, physics.move_torso = on_arm, on_torso
     now = read_state(bb)
     q = list(now.q_arm_rad["left"])
     q[0] += 0.1
@@ -208,12 +208,12 @@ def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned() -> None:
         replanned.append(found is not None)
         return found
 
-    sd._regrasp = spy  # type: ignore[assignment]
+    sd._regrasp = spy
     try:
         assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
             bb.get("last_failure_detail")
     finally:
-        sd._regrasp = regrasp  # type: ignore[assignment]
+        sd._regrasp = regrasp
     assert replanned == [True]
     arm = bb["arm_in_use"]
     assert world.physics.held_object(arm) == bb["grasp_target"]
