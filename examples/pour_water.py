@@ -46,10 +46,12 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   run's generator: every random draw of a run belongs to the skills.
 - "Only one set of values" is made exact by tolerances (see
   :mod:`skillcompose.skills.pour_water`): the spout within 4 cm of the rim's centre
-  horizontally and 0–15 cm above it, the jug tilted 60°–120° from upright; the yaw θ does
-  not pour a jug and is free. The position window is about 0.1 % of the workspace, which is
-  what makes the search hard; the tilt band is about two thirds of the (ρ, φ) square: a pour
-  needs a tilt, not one exact angle.
+  horizontally and at most 15 cm above it, the jug tilted 60°–120° from upright; the yaw θ
+  does not pour a jug and is free. The jug is a body that cannot enter the glass, so an
+  upright jug's spout stays at least 6.4 cm above the rim. The position window is about
+  0.1 % of the workspace, which is what makes the search hard; the tilt band is about two
+  thirds of the (ρ, φ) square, and with ``reach=pr2`` about half of it is out of the arm's
+  reach over the glass: a pour needs a tilt the robot can take, not one exact angle.
 - Equation (1) is applied in its order of cases: 0 for ``success``; 20 when the jug is not
   in the gripper at the end; 2·d(jug, glass) on ``timeout``; d(jug, glass) otherwise, with d
   the Euclidean distance [m] between the jug's spout and the glass's rim centre.

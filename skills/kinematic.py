@@ -106,6 +106,7 @@ from skillcompose.skills.pour_geometry import (
     Pitch,
     Roll,
     Yaw,
+    held_jug_hits_glass,
 )
 from skillcompose.skills.stacking_world import StackDX, StackDY, StackDZ, Which, landing_z
 
@@ -149,6 +150,15 @@ _ObjectName = Literal["jug", "glass", "object", "first", "second"]
 
 def _rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return np.asarray(pin.rpy.rpyToMatrix(roll, pitch, yaw))
+
+
+def _jug_into_glass(bb: Blackboard, state: RobotState, grasp_world: Sequence[float],
+                    rotation: Sequence[float]) -> bool:
+    """Whether a jug held at ``grasp_world`` with the gripper at ``rotation`` would reach
+    into the glass (:func:`~skillcompose.skills.pour_geometry.held_jug_hits_glass`)."""
+    glass = bb.get("glass_position_world")
+    return _holding_arm(state, "jug") is not None and glass is not None and \
+        held_jug_hits_glass(grasp_world, rotation, glass)
 
 
 def _holding_arm(state: RobotState, name: str) -> Arm | None:
@@ -284,7 +294,8 @@ def move_gripper_to_param(
     """Move the gripper, keeping its rotation, to ``(x, y, z)`` in world [m] by IK.
 
     The gripper is the arm holding the jug, else the arm in use (then the other), else the
-    arm on the target's side. A held jug moves with it. ``failure`` with the IK reason.
+    arm on the target's side. A held jug moves with it. ``failure`` with the IK reason, or
+    ``collision`` when the held jug would reach into the glass there.
     """
     state = read_state(bb)
     position = np.array([x, y, z])
@@ -292,6 +303,9 @@ def move_gripper_to_param(
     arms = _gripper_arms(state, (x, y, z))
     if not arms:
         return fail(bb, "already_holding", "MoveGripperToParam: both grippers are full")
+    if _jug_into_glass(bb, state, (x, y, z), rotation):
+        return fail(bb, "collision", f"MoveGripperToParam: the held jug would reach into "
+                    f"the glass at {fmt((x, y, z))} m")
     answer = reach_either(world, state, arms, pin.SE3(_rpy(*rotation), position),
                           scene_world(bb), rng)
     if answer.state is None:
@@ -331,6 +345,10 @@ def rotate_gripper_to_param(
         arm = arms_for(state, gripper)[0]
     tool = robot_to_world * world.transform_tool_to_robot(
         arm, state.torso_height_m, state.q_arm_rad[arm])
+    if _jug_into_glass(bb, state, tool.translation, (rho, phi, theta)):
+        fail(bb, "collision", "RotateGripperToParam (gripper left as it was): the held jug "
+             "would turn into the glass")
+        return "success"
     target = pin.SE3(_rpy(rho, phi, theta), tool.translation.copy())
     answer = reach(world, state, arm, target, scene_world(bb), rng)
     if answer.state is None:

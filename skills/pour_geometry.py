@@ -16,6 +16,9 @@ from skillcompose import Param
 __all__ = [
     "APPROACH_OFFSET_M",
     "APPROACH_TOLERANCE_M",
+    "GLASS_HALF_EXTENTS_M",
+    "JUG_GRASP_ABOVE_CENTRE_M",
+    "JUG_HALF_EXTENTS_M",
     "POUR_HEIGHT_MAX_M",
     "POUR_HEIGHT_MIN_M",
     "POUR_RADIUS_M",
@@ -30,6 +33,7 @@ __all__ = [
     "Vec3",
     "Yaw",
     "distance",
+    "held_jug_hits_glass",
     "pours_into_glass",
     "tilt",
 ]
@@ -50,6 +54,15 @@ POUR_TILT_MIN_RAD = math.pi / 3
 """A held jug starts pouring at this tilt from upright."""
 POUR_TILT_MAX_RAD = 2 * math.pi / 3
 """Beyond this tilt the water leaves through the whole mouth and misses the glass."""
+JUG_HALF_EXTENTS_M = (0.035, 0.035, 0.038)
+"""The jug's outside: 7 x 7 x 7.6 cm (half extents) [m]."""
+JUG_GRASP_ABOVE_CENTRE_M = 0.026
+"""Its grasp point (``jug_position_world``, held at the tool frame, the jug's axes along the
+tool's) lies this far above its centre: 1.2 cm under the rim [m]."""
+GLASS_HALF_EXTENTS_M = (0.045, 0.045, 0.06)
+"""The glass's outside: 9 x 9 x 12 cm, its rim (``glass_position_world``) on top [m]."""
+JUG_GLASS_TOLERANCE_M = 0.001
+"""A held jug may touch the glass by this much: it hits it when deeper [m]."""
 WORKSPACE_WORLD = ((0.20, 1.00), (-0.60, 0.60), (0.75, 1.50))
 """Where MoveGripperToParam may send the gripper: (x, y, z) ranges in the world frame [m].
 The table top is at z = 0.75 m."""
@@ -86,3 +99,38 @@ def pours_into_glass(spout_world: Sequence[float], glass_world: Sequence[float])
     dy = spout_world[1] - glass_world[1]
     dz = spout_world[2] - glass_world[2]
     return dx * dx + dy * dy <= POUR_RADIUS_M**2 and POUR_HEIGHT_MIN_M <= dz <= POUR_HEIGHT_MAX_M
+
+
+def _rpy_matrix(rotation: Sequence[float]) -> tuple[tuple[float, float, float], ...]:
+    """Roll, pitch, yaw about the fixed x, y, z axes: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
+    cr, sr = math.cos(rotation[0]), math.sin(rotation[0])
+    cp, sp = math.cos(rotation[1]), math.sin(rotation[1])
+    cy, sy = math.cos(rotation[2]), math.sin(rotation[2])
+    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+            (-sp, cp * sr, cp * cr))
+
+
+def held_jug_hits_glass(grasp_world: Sequence[float], rotation: Sequence[float],
+                        glass_world: Sequence[float]) -> bool:
+    """Whether the jug, held at ``grasp_world`` with the gripper at roll-pitch-yaw
+    ``rotation``, would reach into the glass whose rim centre is at ``glass_world`` (both in
+    the world frame [m]): the jug's box, turned with the gripper, against the glass's, as
+    axis-aligned bounds. The spout of the abstract skills is the grasp point, so a pour with
+    the spout less than the jug's own height above the rim puts the jug into the glass."""
+    r = _rpy_matrix(rotation)
+    hx, hy, hz = JUG_HALF_EXTENTS_M
+    low = [math.inf] * 3
+    high = [-math.inf] * 3
+    for sx in (-1.0, 1.0):
+        for sy in (-1.0, 1.0):
+            for sz in (-1.0, 1.0):
+                local = (sx * hx, sy * hy, sz * hz - JUG_GRASP_ABOVE_CENTRE_M)
+                for i in range(3):
+                    v = grasp_world[i] + sum(r[i][j] * local[j] for j in range(3))
+                    low[i], high[i] = min(low[i], v), max(high[i], v)
+    gx, gy, gz = GLASS_HALF_EXTENTS_M
+    glass_low = (glass_world[0] - gx, glass_world[1] - gy, glass_world[2] - 2 * gz)
+    glass_high = (glass_world[0] + gx, glass_world[1] + gy, glass_world[2])
+    return all(min(high[i], glass_high[i]) - max(low[i], glass_low[i]) > JUG_GLASS_TOLERANCE_M
+               for i in range(3))

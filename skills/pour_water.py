@@ -34,15 +34,22 @@ it the jug is nearly upside down and the water leaves through the whole mouth, w
 the glass. The water lands in the glass when the spout is over it: at most
 :data:`POUR_RADIUS_M` (4 cm, the glass's mouth) from the rim's centre horizontally, and
 between :data:`POUR_HEIGHT_MIN_M` (0 cm: the spout level with the rim, not below it) and
-:data:`POUR_HEIGHT_MAX_M` (15 cm, higher splashes) above it. The window starts at the rim on
-purpose: equation (1) rewards bringing the jug close to the glass, and the closest point,
-the spout at the rim's centre, must be a place the jug pours from, or the fitness would lead
-evolution to a spot where pouring can never succeed. Water leaving the jug anywhere else, or
+:data:`POUR_HEIGHT_MAX_M` (15 cm, higher splashes) above it; the jug's own body keeps it
+higher still (see "The jug is a body" below). Water leaving the jug anywhere else, or
 upside down, is spilled. The tilt of rotation (ρ, φ, θ) — roll about x, pitch about y, yaw
 about z, applied in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw
 θ turns the jug about the vertical and never pours it. So "the one correct set of values" of
 the paper is the box of positions above times the band of tilts, with θ free. Water moves
 whenever the held jug's pose changes: after a rotation, a move and a grasp.
+
+The jug is a body. The held jug hangs below its spout (the grasp point: 7.6 cm tall, held
+1.2 cm under its rim; :data:`~skillcompose.skills.pour_geometry.JUG_HALF_EXTENTS_M`), and the
+glass is a 9 x 9 x 12 cm cup under its rim: a move or a rotation that would put the jug into
+the glass (:func:`~skillcompose.skills.pour_geometry.held_jug_hits_glass`) does not happen
+(MoveGripperToParam fails, RotateGripperToParam leaves the gripper as it was), on every
+backend. So an upright jug pours from 6.4 cm above the rim at the lowest, and that is also
+the closest the spout comes to the rim's centre from above: equation (1)'s distance still
+leads evolution to a place that pours.
 
 The robot. With ``robot_check`` set (the task's default, ``reach=pr2``), a pose that would
 pour into the glass is taken only if the PR2's arm can take it:
@@ -80,6 +87,7 @@ from skillcompose.skills.pour_geometry import (
     Vec3,
     Yaw,
     distance,
+    held_jug_hits_glass,
     pours_into_glass,
     tilt,
 )
@@ -252,12 +260,16 @@ def move_gripper_to_param(
 ) -> Literal["success", "failure"]:
     """Move the gripper to ``(x, y, z)`` in the world frame [m]; a held jug moves with it.
 
-    ``failure`` at random with ``p_fail`` (the planner found no path), or when the held
-    jug would pour into the glass from a pose the PR2 cannot take: nothing moves.
+    ``failure`` at random with ``p_fail`` (the planner found no path), when the held jug
+    would reach into the glass, or when it would pour into the glass from a pose the PR2
+    cannot take: nothing moves.
     """
     if _random_failure(bb, rng):
         return "failure"
     target = (x, y, z)
+    if bb["holding_jug"] and held_jug_hits_glass(target, bb["gripper_rotation"],
+                                                 bb["glass_position_world"]):
+        return "failure"
     if not _robot_can_take(bb, target, bb["gripper_rotation"]):
         return "failure"
     bb["gripper_position_world"] = target
@@ -286,6 +298,9 @@ def rotate_gripper_to_param(
     anywhere else, or further, it spills. Always ``success``; a rotation that would pour
     but that the PR2's arm cannot take leaves the gripper as it was (see the module).
     """
+    if bb["holding_jug"] and held_jug_hits_glass(
+            bb["jug_position_world"], (rho, phi, theta), bb["glass_position_world"]):
+        return "success"  # the jug would turn into the glass: the gripper stays
     if not _robot_can_take(bb, bb["jug_position_world"], (rho, phi, theta)):
         return "success"
     bb["gripper_rotation"] = (rho, phi, theta)

@@ -85,6 +85,11 @@ from skillcompose.skills.kinematic_world import (
     scene_world,
     transform_robot_to_world,
 )
+from skillcompose.skills.pour_geometry import (
+    GLASS_HALF_EXTENTS_M,
+    JUG_GRASP_ABOVE_CENTRE_M,
+    JUG_HALF_EXTENTS_M,
+)
 
 __all__ = [
     "BACKEND",
@@ -110,16 +115,13 @@ __all__ = [
     "water_state",
 ]
 
-JUG = ObjectSpec("jug", "cup", (0.035, 0.035, 0.038), 0.15, friction=1.0, flare_rad=0.1,
+JUG = ObjectSpec("jug", "cup", JUG_HALF_EXTENTS_M, 0.15, friction=1.0, flare_rad=0.1,
                  rgba=(0.85, 0.45, 0.2, 1.0))
 """The jug: an open-top cup of 7 x 7 x 7.6 cm outside [m], 0.15 kg."""
-GLASS = ObjectSpec("glass", "cup", (0.045, 0.045, 0.06), 0.2, friction=1.0,
+GLASS = ObjectSpec("glass", "cup", GLASS_HALF_EXTENTS_M, 0.2, friction=1.0,
                    rgba=(0.7, 0.9, 1.0, 0.5))
 """The glass: an open-top cup of 9 x 9 x 12 cm outside [m], 0.2 kg; its mouth (7.8 cm
 inside) is about the abstract skills' pouring radius (4 cm) across."""
-JUG_GRASP_ABOVE_CENTRE_M = JUG.size_m[2] - 0.012
-"""The jug's grasp point (``jug_position_world``, where the tool frame holds it) is this far
-above its centre: 1.2 cm under the rim, the finger pads just below it [m]."""
 STAND = ObjectSpec("stand", "box", (0.05, 0.05, 0.068), 1.5, friction=1.0,
                    rgba=(0.45, 0.45, 0.5, 1.0))
 """The block the jug stands on (10 x 10 x 13.6 cm, 1.5 kg), so that its grasp point is

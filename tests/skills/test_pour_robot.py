@@ -87,3 +87,16 @@ def test_the_shipped_evolved_fsa_pours_on_the_pr2_model() -> None:
     fsa = load_fsa("docs/results/pour_water_best.fsa.yaml")
     kinematic = load_task("examples.pour_water", backend="kinematic")
     assert all(pours(kinematic, fsa, seed) for seed in range(5))
+
+
+def test_the_held_jug_cannot_enter_the_glass_on_the_pr2_model_either() -> None:
+    """The reference carried 3 cm above the rim (its jug hangs 6.4 cm below the spout): the
+    kinematic MoveGripperToParam fails with ``collision``, and the check says no pour."""
+    low = REFERENCE.with_params("MoveOverGlass", x=0.60, y=0.20, z=0.90)
+    kinematic = load_task("examples.pour_water", backend="kinematic")
+    trial = next(iter(kinematic.each_trial(kinematic.compile(low), 0, 1)))
+    assert trial.result.outcome == "timeout" and trial.blackboard is not None
+    assert trial.blackboard["last_failure_reason"] == "collision"
+    assert "jug would reach into the glass" in trial.blackboard["last_failure_detail"]
+    assert not pr2_can_pour(START, (0.60, 0.20, 0.90), (0.0, math.pi / 2, 0.0))
+    assert pr2_can_pour(START, (0.60, 0.20, 0.95), (0.0, math.pi / 2, 0.0))

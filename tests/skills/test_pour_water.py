@@ -182,7 +182,9 @@ def test_rotating_the_held_jug_over_the_glass_pours_it() -> None:
         (over_glass(), (math.pi, 0.0, 0.0), "spilled"),  # upside down
         (over_glass(0.2), (0.0, 1.5, 0.0), "spilled"),  # too high: splashes
         (over_glass(-0.005), (0.0, 1.5, 0.0), "spilled"),  # below the rim
-        (over_glass(0.0), (0.0, 1.5, 0.0), "glass"),  # level with the rim: the fitness's best
+        (over_glass(0.0), (0.0, 1.5, 0.0), "spilled"),  # the jug would be in the glass:
+        # it stays where it was, and tilted there it spills
+        (over_glass(0.065), (0.0, 1.5, 0.0), "glass"),  # an upright jug's lowest: it pours
         (over_glass(0.08, 0.05), (0.0, 1.5, 0.0), "spilled"),  # 5 cm off the centre
         ((0.5, -0.3, 1.1), (0.0, 1.5, 0.0), "spilled"),  # nowhere near the glass
     ],
@@ -195,6 +197,23 @@ def test_pouring_tolerances(
     pw.rotate_gripper_to_param(bb, 0, rho=angles[0], phi=angles[1], theta=angles[2])
     assert bb["water"] == water
     assert pw.check_success(bb, 0) == ("success" if water == "glass" else "failure")
+
+
+def test_the_held_jug_cannot_enter_the_glass() -> None:
+    """The jug hangs 6.4 cm below its spout: a move that would put it into the glass fails
+    and moves nothing; a rotation that would turn it into the glass leaves the gripper."""
+    bb = holding()
+    before = bb["gripper_position_world"]
+    g = over_glass(0.03)
+    assert pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2]) == "failure"
+    assert bb["gripper_position_world"] == before and bb["water"] == "jug"
+    g = over_glass(0.065)
+    assert pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2]) == "success"
+    # a small roll dips a corner of the jug's bottom, only just above the rim, into it
+    assert pw.rotate_gripper_to_param(bb, 0, rho=0.2, phi=0.0, theta=0.0) == "success"
+    assert bb["gripper_rotation"] == (0.0, 0.0, 0.0) and bb["water"] == "jug"
+    assert pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=math.pi / 2, theta=0.0) == "success"
+    assert bb["water"] == "glass"  # tipped over about the grasp point, the body swings clear
 
 
 def test_tilting_before_moving_over_the_glass_spills_for_good() -> None:
