@@ -54,7 +54,11 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   reach over the glass: a pour needs a tilt the robot can take, not one exact angle.
 - Equation (1) is applied in its order of cases: 0 for ``success``; 20 when the jug is not
   in the gripper at the end; 2·d(jug, glass) on ``timeout``; d(jug, glass) otherwise, with d
-  the Euclidean distance [m] between the jug's spout and the glass's rim centre.
+  the Euclidean distance [m] between the jug's spout and the glass's pouring point: 6.4 cm
+  above its rim's centre, where the upright jug's bottom is level with the rim
+  (:func:`~skillcompose.skills.pour_geometry.pour_point`). The jug cannot go lower over the
+  glass, so the closest point is one it pours from, and a jug held beside the glass at
+  rim height is farther from it than any point of the pouring window.
 - As in the paper, only CheckSuccess ends a run: the task sets ``terminal_skills``, so
   evolution routes CheckSuccess's outcomes to the terminals and every other outcome to a
   state. A hand-edited FSA may still route any outcome to a terminal; one that ends in
@@ -78,6 +82,7 @@ import numpy as np
 
 from skillcompose import TIMEOUT, Blackboard, Registry
 from skillcompose.skills import pour_water as skills_pour_water
+from skillcompose.skills.pour_geometry import pour_point
 from skillcompose.skills.pour_water import Vec3, distance
 from skillcompose.task import Task, TaskError
 
@@ -143,7 +148,7 @@ def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
         return 0.0
     if not bb["holding_jug"]:
         return JUG_NOT_HELD_FITNESS
-    d = distance(bb["jug_position_world"], bb["glass_position_world"])
+    d = distance(bb["jug_position_world"], pour_point(bb["glass_position_world"]))
     return 2.0 * d if outcome == TIMEOUT else d
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "JUG_HALF_EXTENTS_M",
     "POUR_HEIGHT_MAX_M",
     "POUR_HEIGHT_MIN_M",
+    "POUR_POINT_ABOVE_RIM_M",
     "POUR_RADIUS_M",
     "POUR_TILT_MAX_RAD",
     "POUR_TILT_MIN_RAD",
@@ -34,6 +35,7 @@ __all__ = [
     "Yaw",
     "distance",
     "held_jug_hits_glass",
+    "pour_point",
     "pours_into_glass",
     "tilt",
 ]
@@ -61,6 +63,9 @@ JUG_GRASP_ABOVE_CENTRE_M = 0.026
 tool's) lies this far above its centre: 1.2 cm under the rim [m]."""
 GLASS_HALF_EXTENTS_M = (0.045, 0.045, 0.06)
 """The glass's outside: 9 x 9 x 12 cm, its rim (``glass_position_world``) on top [m]."""
+POUR_POINT_ABOVE_RIM_M = JUG_GRASP_ABOVE_CENTRE_M + JUG_HALF_EXTENTS_M[2]
+"""Where an upright held jug comes closest to the glass from above: its spout this far over
+the rim's centre (6.4 cm), the jug's bottom level with the rim [m]."""
 JUG_GLASS_TOLERANCE_M = 0.001
 """A held jug may touch the glass by this much: it hits it when deeper [m]."""
 WORKSPACE_WORLD = ((0.20, 1.00), (-0.60, 0.60), (0.75, 1.50))
@@ -134,3 +139,10 @@ def held_jug_hits_glass(grasp_world: Sequence[float], rotation: Sequence[float],
     glass_high = (glass_world[0] + gx, glass_world[1] + gy, glass_world[2])
     return all(min(high[i], glass_high[i]) - max(low[i], glass_low[i]) > JUG_GLASS_TOLERANCE_M
                for i in range(3))
+
+
+def pour_point(glass_world: Sequence[float]) -> tuple[float, float, float]:
+    """The spout's place closest to the glass from which the jug pours:
+    :data:`POUR_POINT_ABOVE_RIM_M` above the rim's centre ``glass_world`` [m]."""
+    return (float(glass_world[0]), float(glass_world[1]),
+            float(glass_world[2]) + POUR_POINT_ABOVE_RIM_M)

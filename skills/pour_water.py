@@ -47,9 +47,10 @@ The jug is a body. The held jug hangs below its spout (the grasp point: 7.6 cm t
 glass is a 9 x 9 x 12 cm cup under its rim: a move or a rotation that would put the jug into
 the glass (:func:`~skillcompose.skills.pour_geometry.held_jug_hits_glass`) does not happen
 (MoveGripperToParam fails, RotateGripperToParam leaves the gripper as it was), on every
-backend. So an upright jug pours from 6.4 cm above the rim at the lowest, and that is also
-the closest the spout comes to the rim's centre from above: equation (1)'s distance still
-leads evolution to a place that pours.
+backend. So an upright jug pours from 6.4 cm above the rim at the lowest; the task's
+fitness measures the distance to that point
+(:func:`~skillcompose.skills.pour_geometry.pour_point`), so that it leads evolution to a
+place that pours.
 
 The robot. With ``robot_check`` set (the task's default, ``reach=pr2``), a pose that would
 pour into the glass is taken only if the PR2's arm can take it:

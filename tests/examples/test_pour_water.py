@@ -25,7 +25,7 @@ def end_state(
     return bb
 
 
-SPOUT = (0.60, 0.50, 0.87)  # 30 cm from the glass's rim centre
+SPOUT = (0.60, 0.50, 0.934)  # 30 cm beside the pouring point, 6.4 cm over the rim's centre
 D = 0.30
 
 
@@ -130,3 +130,31 @@ def test_a_chain_without_retries_fails_as_often_as_p_fail_predicts() -> None:
     runs = task.run_trials(compile_fsa(fsa, reg, task.backend), seed=2, trials=4000)
     rate = np.mean([r.outcome == "success" for r, _ in runs])
     assert abs(rate - 0.8**3) < 4 * np.sqrt(0.512 * 0.488 / 4000)
+
+
+def test_the_closest_place_to_the_glass_is_one_that_pours() -> None:
+    """The fitness's distance is to the pouring point, 6.4 cm over the rim (the jug cannot
+    go lower over the glass): a jug held just beside the glass at rim height, where the
+    distance to the rim itself is small, scores worse than every spout position in the
+    pouring window the jug can reach."""
+    from skillcompose.skills.pour_geometry import (
+        POUR_HEIGHT_MAX_M,
+        POUR_POINT_ABOVE_RIM_M,
+        POUR_RADIUS_M,
+        held_jug_hits_glass,
+        pours_into_glass,
+    )
+
+    gx, gy, gz = ex.GLASS_RIM_WORLD
+    beside = (gx - 0.081, gy, gz)
+    assert not held_jug_hits_glass(beside, (0.0, 0.0, 0.0), ex.GLASS_RIM_WORLD)
+    worst_in_window = 0.0
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        r, a = POUR_RADIUS_M * np.sqrt(rng.random()), 2 * np.pi * rng.random()
+        h = rng.uniform(POUR_POINT_ABOVE_RIM_M, POUR_HEIGHT_MAX_M)
+        spout = (gx + r * np.cos(a), gy + r * np.sin(a), gz + h)
+        assert pours_into_glass(spout, ex.GLASS_RIM_WORLD)
+        assert not held_jug_hits_glass(spout, (0.0, 0.0, 0.0), ex.GLASS_RIM_WORLD)
+        worst_in_window = max(worst_in_window, ex.fitness("failure", end_state(holding=True, spout=spout), 9))
+    assert ex.fitness("failure", end_state(holding=True, spout=beside), 9) > worst_in_window
