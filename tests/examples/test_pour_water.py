@@ -156,5 +156,6 @@ def test_the_closest_place_to_the_glass_is_one_that_pours() -> None:
         spout = (gx + r * np.cos(a), gy + r * np.sin(a), gz + h)
         assert pours_into_glass(spout, ex.GLASS_RIM_WORLD)
         assert not held_jug_hits_glass(spout, (0.0, 0.0, 0.0), ex.GLASS_RIM_WORLD)
-        worst_in_window = max(worst_in_window, ex.fitness("failure", end_state(holding=True, spout=spout), 9))
+        there = ex.fitness("failure", end_state(holding=True, spout=spout), 9)
+        worst_in_window = max(worst_in_window, there)
     assert ex.fitness("failure", end_state(holding=True, spout=beside), 9) > worst_in_window
