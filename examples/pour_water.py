@@ -32,8 +32,10 @@ Settings (``make_task(**settings)``, ``--set name=value`` on the command line):
 - ``reach`` (default ``pr2``, ``sim`` only): ``pr2``: the abstract skills pour only from a
   pose the PR2's arm can take (the kinematic twins are asked, once per distinct pose; see
   :mod:`skillcompose.skills.pour_robot`), so that what evolution finds on ``sim`` pours on
-  the robot too. ``free``: the abstract rule alone, any tilt in the band over the glass (no
-  robot model; about half of those rotations are out of the PR2's reach there).
+  the robot too. ``physics``: only from a pose from which the PR2 in MuJoCo pours the
+  water into the glass (the dynamic twins are asked, about 3 s of CPU per distinct pose).
+  ``free``: the abstract rule alone, any tilt in the band over the glass (no robot model;
+  about half of those rotations are out of the PR2's reach there).
 - ``trials`` (default 1): runs averaged per evaluation of an FSA.
 - ``step_limit`` (default 20, the paper's): more steps than this end a run in ``timeout``.
 
@@ -118,20 +120,22 @@ def register(registry: Registry) -> None:
     skills_pour_water.register(registry)
 
 
-REACH = ("pr2", "free")
-"""The ``reach`` setting's values: the abstract skills ask the PR2 model, or not."""
+REACH = ("pr2", "physics", "free")
+"""The ``reach`` setting's values: the abstract skills ask the PR2 model, the PR2 in MuJoCo,
+or nothing."""
 
 
 def setup(rng: np.random.Generator, *, p_fail: float = DEFAULT_P_FAIL,
-          robot_check: bool = False) -> Blackboard:
+          robot_check: str | None = None) -> Blackboard:
     """The world of one trial: objects on the table, gripper home, water in the jug; with
-    ``robot_check`` the abstract skills pour only where the PR2 can.
+    ``robot_check`` (``"pr2"`` or ``"physics"``) the abstract skills pour only where that
+    robot does.
 
     Draws nothing from ``rng``: the world is the same in every trial.
     """
     return Blackboard({
-        "robot_check": (JUG_SPOUT_WORLD, GLASS_RIM_WORLD, GRIPPER_HOME_WORLD)
-        if robot_check else None,
+        "robot_check": (robot_check, (JUG_SPOUT_WORLD, GLASS_RIM_WORLD, GRIPPER_HOME_WORLD))
+        if robot_check is not None else None,
         "p_fail": p_fail,
         "jug_position_world": JUG_SPOUT_WORLD,
         "glass_position_world": GLASS_RIM_WORLD,
@@ -214,7 +218,7 @@ def make_task(
 
             kinematic.register(registry)
 
-        check = backend == "sim" and reach == "pr2"
+        check = reach if backend == "sim" and reach != "free" else None
 
         def world(rng: np.random.Generator) -> Blackboard:
             return setup(rng, p_fail=p, robot_check=check)

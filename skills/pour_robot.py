@@ -27,7 +27,7 @@ import numpy as np
 from skillcompose import Blackboard, Registry
 from skillcompose.skills.pour_geometry import Vec3
 
-__all__ = ["CHECK_SEED", "pr2_can_pour"]
+__all__ = ["CHECK_SEED", "can_pour", "physics_can_pour", "pr2_can_pour"]
 
 CHECK_SEED = 0
 """The seed of the IK's random restarts in the check (the answer is the same in every
@@ -45,17 +45,53 @@ def _registry() -> Registry:
     return registry
 
 
+def _start_board(start: tuple[Vec3, Vec3, Vec3]) -> Blackboard:
+    jug, glass, home = start
+    return Blackboard({
+        "p_fail": 0.0, "jug_position_world": jug, "glass_position_world": glass,
+        "gripper_position_world": home, "gripper_rotation": (0.0, 0.0, 0.0),
+        "holding_jug": False, "water": "jug",
+    })
+
+
+@functools.cache
+def _dynamic() -> tuple[Registry, object]:
+    from skillcompose.skills import pour_water_dynamic
+
+    registry = Registry(backend="dynamic")
+    world = pour_water_dynamic.register(registry)
+    return registry, world
+
+
+@functools.lru_cache(maxsize=1 << 14)
+def physics_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: Vec3) -> bool:
+    """Whether the PR2 simulated in MuJoCo (the ``dynamic`` twins,
+    :mod:`skillcompose.skills.pour_water_dynamic`) pours the water into the glass by the
+    path of :func:`pr2_can_pour`: at least 80 % of the particles in the glass once they
+    rest. About 3 s of CPU per pose (an evolution run asks about a few hundred)."""
+    from skillcompose.skills import pour_water_dynamic
+
+    registry, world = _dynamic()
+    bb = _start_board(start)
+    pour_water_dynamic.start_episode(world, bb)  # type: ignore[arg-type]
+    rng = np.random.default_rng(CHECK_SEED)
+    for name in _PATH:
+        if registry.resolve(name, "dynamic")(bb, rng) != "success":
+            return False
+    x, y, z = position
+    if registry.resolve("MoveGripperToParam", "dynamic")(bb, rng, x=x, y=y, z=z) != "success":
+        return False
+    rho, phi, theta = rotation
+    registry.resolve("RotateGripperToParam", "dynamic")(bb, rng, rho=rho, phi=phi, theta=theta)
+    return bool(bb["water"] == "glass")
+
+
 @functools.lru_cache(maxsize=1 << 16)
 def pr2_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: Vec3) -> bool:
     """Whether the PR2, from the world ``start`` (the jug's spout, the glass's rim, the
     gripper's home, all in world [m]), grasps the jug, brings the spout to ``position`` and
     rotates the gripper to ``rotation`` (roll, pitch, yaw [rad]) with its kinematic skills."""
-    jug, glass, home = start
-    bb = Blackboard({
-        "p_fail": 0.0, "jug_position_world": jug, "glass_position_world": glass,
-        "gripper_position_world": home, "gripper_rotation": (0.0, 0.0, 0.0),
-        "holding_jug": False, "water": "jug",
-    })
+    bb = _start_board(start)
     rng = np.random.default_rng(CHECK_SEED)
     registry = _registry()
     for name in _PATH:
@@ -71,3 +107,14 @@ def pr2_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: Vec3)
                                                           theta=theta)
     return bb.get("last_failure_reason") is None and \
         tuple(bb["gripper_rotation"]) == tuple(rotation)
+
+
+def can_pour(kind: str, start: tuple[Vec3, Vec3, Vec3], position: Vec3,
+             rotation: Vec3) -> bool:
+    """The check the pour task's ``reach`` setting names: ``"pr2"``
+    (:func:`pr2_can_pour`) or ``"physics"`` (:func:`physics_can_pour`)."""
+    if kind == "physics":
+        return physics_can_pour(start, position, rotation)
+    if kind == "pr2":
+        return pr2_can_pour(start, position, rotation)
+    raise ValueError(f"robot check {kind!r}: expected pr2 or physics")

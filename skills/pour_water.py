@@ -19,10 +19,12 @@ key                          meaning (written by the task's ``setup`` unless sai
 ``water``                    where the water is: ``"jug"``, ``"glass"`` or ``"spilled"``
 ``jug_location_world``       where RecogniseObject saw the jug (absent until then) [m]
 ``glass_location_world``     where RecogniseObject saw the glass (absent until then) [m]
-``robot_check``              the episode's starting world (the jug's spout, the glass's
-                             rim, the gripper's home), when the abstract skills pour only
-                             where the PR2 can (see "The robot" below); absent or ``None``:
-                             the abstract rule alone
+``robot_check``              which robot the abstract skills ask before they pour
+                             (``"pr2"``: the kinematic model, ``"physics"``: the PR2 in
+                             MuJoCo) and the episode's starting world (the jug's spout, the
+                             glass's rim, the gripper's home), as ``(kind, (jug, glass,
+                             home))``; see "The robot" below. Absent or ``None``: the
+                             abstract rule alone
 ============================ ==============================================================
 
 Positions and rotations are plain ``(x, y, z)`` float tuples: these skills run millions of
@@ -54,7 +56,9 @@ place that pours.
 
 The robot. With ``robot_check`` set (the task's default, ``reach=pr2``), a pose that would
 pour into the glass is taken only if the PR2's arm can take it:
-:func:`skillcompose.skills.pour_robot.pr2_can_pour` runs the kinematic twins to that pose.
+:func:`skillcompose.skills.pour_robot.pr2_can_pour` runs the kinematic twins to that pose
+(with ``reach=physics``, :func:`~skillcompose.skills.pour_robot.physics_can_pour` runs the
+MuJoCo twins there and asks whether the water ends in the glass).
 Where it cannot, RotateGripperToParam leaves the gripper as it was (still ``success``, as
 its kinematic twin does) and MoveGripperToParam fails without moving, so the jug does not
 pour. Poses that do not pour into the glass are not checked.
@@ -146,18 +150,19 @@ def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
 def _robot_can_take(bb: Blackboard, position: Vec3, rotation: Vec3) -> bool:
     """Whether the held jug may take this pose: always, unless it would pour into the
     glass and the robot check (``robot_check``) says the PR2's arm cannot take it."""
-    start = bb.get("robot_check")
-    if start is None or not bb["holding_jug"] or bb["water"] != "jug":
+    check = bb.get("robot_check")
+    if check is None or not bb["holding_jug"] or bb["water"] != "jug":
         return True
     t = tilt(rotation)
     if not POUR_TILT_MIN_RAD <= t <= POUR_TILT_MAX_RAD or not pours_into_glass(
             position, bb["glass_position_world"]):
         return True
     # imported here: the PR2 model loads only when a pose would pour
-    from skillcompose.skills.pour_robot import pr2_can_pour
+    from skillcompose.skills.pour_robot import can_pour
 
-    jug, glass, home = start
-    return pr2_can_pour((_vec(jug), _vec(glass), _vec(home)), _vec(position), _vec(rotation))
+    kind, (jug, glass, home) = check
+    return can_pour(str(kind), (_vec(jug), _vec(glass), _vec(home)), _vec(position),
+                    _vec(rotation))
 
 
 def _vec(v: Sequence[float]) -> Vec3:

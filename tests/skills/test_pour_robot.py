@@ -72,7 +72,7 @@ def test_sim_and_the_pr2_model_agree_on_random_pouring_rotations() -> None:
 
 
 def test_the_reach_setting_is_checked() -> None:
-    with pytest.raises(TaskError, match=r"reach='arm' must be one of pr2, free"):
+    with pytest.raises(TaskError, match=r"reach='arm' must be one of pr2, physics, free"):
         load_task("examples.pour_water", reach="arm")
     with pytest.raises(TaskError, match=r"reach='free' chooses how the sim backend"):
         load_task("examples.pour_water", backend="kinematic", reach="free")
@@ -100,3 +100,19 @@ def test_the_held_jug_cannot_enter_the_glass_on_the_pr2_model_either() -> None:
     assert "jug would reach into the glass" in trial.blackboard["last_failure_detail"]
     assert not pr2_can_pour(START, (0.60, 0.20, 0.90), (0.0, math.pi / 2, 0.0))
     assert pr2_can_pour(START, (0.60, 0.20, 0.95), (0.0, math.pi / 2, 0.0))
+
+
+@pytest.mark.physics
+@pytest.mark.slow
+def test_the_physics_check_pours_where_mujoco_does() -> None:
+    """``reach=physics``: the reference's tilt over the glass pours in MuJoCo; the same
+    tilt turned by a yaw of 1 rad, which the abstract rule and the PR2 model accept, spills
+    there, so the abstract skills do not pour with it either."""
+    from skillcompose.skills.pour_robot import physics_can_pour
+
+    turned = (0.0, math.pi / 2, 1.0)
+    assert physics_can_pour(START, OVER_GLASS, (0.0, math.pi / 2, 0.0))
+    assert pr2_can_pour(START, OVER_GLASS, turned)
+    assert not physics_can_pour(START, OVER_GLASS, turned)
+    sim = load_task("examples.pour_water", p_fail=0.0, reach="physics")
+    assert pours(sim, REFERENCE, 0) and not pours(sim, pouring_with(turned), 0)
