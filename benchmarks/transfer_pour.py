@@ -1,12 +1,14 @@
 """Transfer of the pour-water FSAs: the same files on the sim, kinematic and dynamic backends.
 
-Runs the hand-written reference (``examples/pour_water_reference.fsa.yaml``) and the evolved
-FSA (``docs/results/pour_water_best.fsa.yaml``) on ``examples.pour_water`` with
+Runs the hand-written reference (``examples/pour_water_reference.fsa.yaml``), the evolved
+FSA (``docs/results/pour_water_best.fsa.yaml``) and, when it exists, the one evolved against
+the physics (``docs/results/pour_water_physics.fsa.yaml``, ``--evolve-physics SEED``) on ``examples.pour_water`` with
 ``backend=sim`` (the paper's ``p_fail`` 0.2), ``kinematic`` and ``dynamic`` (the PR2 in
 MuJoCo, water as particles), the same seeds on each, and writes what poured, why the rest
 did not, and how fast::
 
     nice -n 10 python benchmarks/transfer_pour.py              # 100 runs per FSA and backend
+    python benchmarks/transfer_pour.py --evolve-physics 0      # evolve the reach=physics FSA too
     python benchmarks/transfer_pour.py --runs 5 --out /tmp/tp  # a quick look
 
 A run *pours* when its fitness is 0 (equation (1): CheckSuccess's ``success`` with the water
@@ -38,7 +40,11 @@ ROOT = Path(__file__).resolve().parents[1]
 FSAS = {
     "reference": ROOT / "examples" / "pour_water_reference.fsa.yaml",
     "evolved": ROOT / "docs" / "results" / "pour_water_best.fsa.yaml",
+    "evolved, reach=physics": ROOT / "docs" / "results" / "pour_water_physics.fsa.yaml",
 }
+"""The FSAs measured: the hand-written one, the best of ``reproduce_pour_water.py`` (evolved
+with the task's default ``reach=pr2``), and one evolved with ``reach=physics`` by this script
+(``--evolve-physics SEED``; measured when its file exists)."""
 BACKENDS = ("sim", "kinematic", "dynamic")
 TASK = "examples.pour_water"
 
@@ -80,11 +86,32 @@ def measure(fsa: Path, backend: str, runs: int, seed: int) -> dict[str, Any]:
     return row
 
 
+def evolve_physics(seed: int, generations: int) -> dict[str, Any]:
+    """Evolve pour water with ``reach=physics`` (the default preset, serially: the physics
+    checks are cached per process) and write its best FSA where :data:`FSAS` looks."""
+    from skillcompose import save_fsa
+    from skillcompose.evolve import EvolutionConfig, evolve
+    from skillcompose.evolve.config import preset_settings
+
+    task = load_task(TASK, reach="physics")
+    cfg = EvolutionConfig(**{**preset_settings("default", task.deterministic),
+                             "generations": generations})
+    result = evolve(task, cfg, seed=seed, workers=1, backend="serial")
+    save_fsa(result.best_fsa, FSAS["evolved, reach=physics"], header=(
+        "The best pour-water FSA evolved with reach=physics (the abstract skills pour only "
+        "where the PR2 in MuJoCo does) by benchmarks/transfer_pour.py --evolve-physics "
+        f"{seed}. Edit and rerun it freely."))
+    return {"seed": seed, "solved": result.solved, "generations": result.generations,
+            "episodes": result.evaluations, "wall_s": result.wall_time,
+            "fresh": result.fresh}
+
+
 def _rate(per_s: float) -> str:
     return f"{per_s:,.0f}" if per_s >= 10 else f"{per_s:.2f}"
 
 
-def report(rows: dict[str, list[dict[str, Any]]], runs: int, seed: int) -> str:
+def report(rows: dict[str, list[dict[str, Any]]], runs: int, seed: int,
+           evolved_physics: dict[str, Any] | None = None) -> str:
     lines = [
         "# Pour water: the same FSAs on three backends",
         "",
@@ -110,6 +137,21 @@ def report(rows: dict[str, list[dict[str, Any]]], runs: int, seed: int) -> str:
             outcomes = ", ".join(f"{k} {v}" for k, v in sorted(row["outcomes"].items()))
             lines.append(f"| {name} | {row['backend']} | {row['poured']} / {row['runs']} | "
                          f"{outcomes} | {_rate(row['episodes_per_s'])} | {speed} |")
+    lines += ["", "The FSAs: `reference` is examples/pour_water_reference.fsa.yaml, written by "
+              "hand; `evolved` is docs/results/pour_water_best.fsa.yaml, the best of "
+              "`benchmarks/reproduce_pour_water.py` (its world: the task's default "
+              "`reach=pr2`, the abstract skills pour only from a pose the PR2 model can take); "
+              "`evolved, reach=physics` is docs/results/pour_water_physics.fsa.yaml, evolved "
+              "by this script with the default preset on `reach=physics` (the abstract skills "
+              "pour only from a pose from which the PR2 in MuJoCo pours)."]
+    if evolved_physics is not None:
+        e = evolved_physics
+        fresh = e["fresh"] or {}
+        lines += ["", f"This run evolved it (`--evolve-physics {e['seed']}`): "
+                  f"{'solved' if e['solved'] else 'not solved'} after {e['generations']} "
+                  f"generations, {e['episodes']:,} episodes, {e['wall_s']:.0f} s; its exported "
+                  f"FSA on fresh abstract episodes: {100 * fresh.get('success_rate', 0):.1f} % "
+                  f"of {fresh.get('episodes', 0)}."]
     lines += ["", "## Runs that did not pour, by cause", ""]
     for name, per_backend in rows.items():
         for row in per_backend:
@@ -132,21 +174,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the episodes")
     parser.add_argument("--backends", nargs="+", choices=BACKENDS, default=list(BACKENDS))
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    parser.add_argument("--evolve-physics", type=int, default=None, metavar="SEED",
+                        help="first evolve the reach=physics FSA with this seed (writes "
+                             "docs/results/pour_water_physics.fsa.yaml; tens of minutes)")
+    parser.add_argument("--generations", type=int, default=1000,
+                        help="generation budget of --evolve-physics")
     args = parser.parse_args(argv)
     if args.runs < 1:
         parser.error("--runs must be at least 1")
+    evolved_physics = None
+    if args.evolve_physics is not None:
+        evolved_physics = evolve_physics(args.evolve_physics, args.generations)
+        print(f"evolved with reach=physics: {evolved_physics}", flush=True)
     rows: dict[str, list[dict[str, Any]]] = {}
     for name, path in FSAS.items():
+        if not path.is_file():
+            print(f"{name}: {path.relative_to(ROOT)} does not exist (--evolve-physics SEED "
+                  "writes it); not measured", flush=True)
+            continue
         for backend in args.backends:
             row = measure(path, backend, args.runs, args.seed)
             rows.setdefault(name, []).append(row)
             print(f"{name:9s} {backend:9s} poured {row['poured']}/{row['runs']} "
                   f"{row['episodes_per_s']:.1f} episodes/s {row['causes'] or ''}", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write(args.out / "transfer_pour.md", report(rows, args.runs, args.seed).encode())
+    atomic_write(args.out / "transfer_pour.md",
+                 report(rows, args.runs, args.seed, evolved_physics).encode())
     atomic_write(args.out / "transfer_pour.json", (json.dumps(
         {"runs": args.runs, "seed": args.seed, "task": TASK, "fsas": {
-            k: str(v.relative_to(ROOT)) for k, v in FSAS.items()}, "results": rows},
+            k: str(v.relative_to(ROOT)) for k, v in FSAS.items() if k in rows},
+         "evolved_physics": evolved_physics, "results": rows},
         indent=2) + "\n").encode())
     print(f"wrote {args.out / 'transfer_pour.md'} and .json")
     return 0
