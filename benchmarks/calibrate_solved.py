@@ -59,7 +59,8 @@ CASES = {
     "toy": Case("toy", "examples.toy_task", {"p_fail": 0.3}, 200,
                 "the fetch-and-place toy task, p_fail 0.3"),
     "pour_water": Case("pour_water", "examples.pour_water", {"p_fail": 0.2}, 500,
-                       "pouring water (§4.1), p_fail 0.2, required rate 0.99"),
+                       "pouring water (§4.1), p_fail 0.2, the task's world (the jug a body "
+                       "that cannot enter the glass, `reach=pr2`), required rate 0.99"),
     "move_to_push": Case("move_to_push", "examples.move_to_push", {}, 400,
                          "moving to push (§4.2), the layered network, today's (facing) "
                          "worlds, `--preset push` (its documented preset: with the default "
@@ -139,7 +140,8 @@ def _load() -> str:
         return "unknown"
 
 
-def report(rows: list[Row], args: argparse.Namespace, started: str, load_before: str) -> str:
+def report(rows: list[Row], args: argparse.Namespace, started: str, load_before: str,
+           measured: int) -> str:
     lines = [
         "# Calibration of \"solved\"",
         "",
@@ -148,7 +150,9 @@ def report(rows: list[Row], args: argparse.Namespace, started: str, load_before:
         "",
         f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}; started {started}; load average before "
-        f"{load_before}, after {_load()} (a shared machine: wall times move with its load).",
+        f"{load_before}, after {_load()} (a shared machine: wall times move with its load). "
+        f"This invocation measured {measured} of the {len(rows)} runs; the others were kept "
+        "from earlier invocations (`--append`), on the same machine.",
         "",
         "EA: the default preset (`skillcompose evolve TASK` with no options: `robust` with "
         "`require_holds`, for these noisy tasks) unless the task's row names another (every "
@@ -237,6 +241,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = [Row(**r) for r in json.loads(saved.read_text(encoding="utf-8"))]
         rows = [r for r in rows if r.task not in args.redo and _current(r)]
     done = {(r.task, r.seed) for r in rows}
+    kept = len(rows)
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.tasks:
         for seed in range(args.first_seed, args.first_seed + args.seeds):
@@ -250,7 +255,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{row.wall_s:.1f} s, re-checked {100 * row.recheck_rate:.2f} %",
                   flush=True)
     rows.sort(key=lambda r: (list(CASES).index(r.task), r.seed))
-    (args.out / "solved.md").write_text(report(rows, args, started, load_before),
+    (args.out / "solved.md").write_text(report(rows, args, started, load_before,
+                                               len(rows) - kept),
                                         encoding="utf-8")
     print(f"wrote {args.out / 'solved.md'}")
     return 0
