@@ -3,9 +3,9 @@
 Runs the hand-written reference (``examples/pour_water_reference.fsa.yaml``), the evolved
 FSA (``docs/results/pour_water_best.fsa.yaml``) and, when it exists, the one evolved against
 the physics (``docs/results/pour_water_physics.fsa.yaml``, ``--evolve-physics SEED``) on
-``examples.pour_water`` with ``backend=sim`` (the paper's ``p_fail`` 0.2), ``kinematic`` and ``dynamic`` (the PR2 in
-MuJoCo, water as particles), the same seeds on each, and writes what poured, why the rest
-did not, and how fast::
+``examples.pour_water`` with ``backend=sim`` (the paper's ``p_fail`` 0.2), ``kinematic``
+and ``dynamic`` (the PR2 in MuJoCo, water as particles), the same seeds on each, and writes
+what poured, why the rest did not, and how fast::
 
     nice -n 10 python benchmarks/transfer_pour.py              # 100 runs per FSA and backend
     python benchmarks/transfer_pour.py --evolve-physics 0      # evolve the reach=physics FSA too
