@@ -106,31 +106,16 @@ from skillcompose.skills.pour_geometry import (
     Pitch,
     Roll,
     Yaw,
+    glass_at,
     held_jug_hits_glass,
 )
 from skillcompose.skills.stacking_world import StackDX, StackDY, StackDZ, Which, landing_z
 
 __all__ = [
-    "BACKEND",
-    "PLACE_BASE_CANDIDATES",
-    "PUSH_DISTANCE_M",
-    "SKILLS",
-    "check_success",
-    "grasp_object",
-    "grasp_param",
-    "make_move_base",
-    "move_base_pose",
-    "move_gripper_to_param",
-    "move_gripper_to_pose",
-    "move_gripper_to_stack",
-    "move_to_object",
-    "open_gripper",
-    "place_base",
-    "push",
-    "reachable",
-    "recognise_object",
-    "register",
-    "register_move_to_push",
+    "BACKEND", "PLACE_BASE_CANDIDATES", "PUSH_DISTANCE_M", "SKILLS", "check_success",
+    "grasp_object", "grasp_param", "make_move_base", "move_base_pose", "move_gripper_to_param",
+    "move_gripper_to_pose", "move_gripper_to_stack", "move_to_object", "open_gripper",
+    "place_base", "push", "reachable", "recognise_object", "register", "register_move_to_push",
     "rotate_gripper_to_param",
 ]
 
@@ -150,15 +135,6 @@ _ObjectName = Literal["jug", "glass", "object", "first", "second"]
 
 def _rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return np.asarray(pin.rpy.rpyToMatrix(roll, pitch, yaw))
-
-
-def _jug_into_glass(bb: Blackboard, state: RobotState, grasp_world: Sequence[float],
-                    rotation: Sequence[float]) -> bool:
-    """Whether a jug held at ``grasp_world`` with the gripper at ``rotation`` would reach
-    into the glass (:func:`~skillcompose.skills.pour_geometry.held_jug_hits_glass`)."""
-    glass = bb.get("glass_position_world")
-    return _holding_arm(state, "jug") is not None and glass is not None and \
-        held_jug_hits_glass(grasp_world, rotation, glass)
 
 
 def _holding_arm(state: RobotState, name: str) -> Arm | None:
@@ -303,7 +279,7 @@ def move_gripper_to_param(
     arms = _gripper_arms(state, (x, y, z))
     if not arms:
         return fail(bb, "already_holding", "MoveGripperToParam: both grippers are full")
-    if _jug_into_glass(bb, state, (x, y, z), rotation):
+    if _holding_arm(state, "jug") and held_jug_hits_glass((x, y, z), rotation, glass_at(bb)):
         return fail(bb, "collision", f"MoveGripperToParam: the held jug would reach into "
                     f"the glass at {fmt((x, y, z))} m")
     answer = reach_either(world, state, arms, pin.SE3(_rpy(*rotation), position),
@@ -345,7 +321,8 @@ def rotate_gripper_to_param(
         arm = arms_for(state, gripper)[0]
     tool = robot_to_world * world.transform_tool_to_robot(
         arm, state.torso_height_m, state.q_arm_rad[arm])
-    if _jug_into_glass(bb, state, tool.translation, (rho, phi, theta)):
+    if _holding_arm(state, "jug") and held_jug_hits_glass(tool.translation, (rho, phi, theta),
+                                                          glass_at(bb)):
         fail(bb, "collision", "RotateGripperToParam (gripper left as it was): the held jug "
              "would turn into the glass")
         return "success"

@@ -11,7 +11,7 @@ import math
 from collections.abc import Sequence
 from typing import Annotated
 
-from skillcompose import Param
+from skillcompose import Blackboard, Param
 
 __all__ = [
     "APPROACH_OFFSET_M",
@@ -34,6 +34,7 @@ __all__ = [
     "Vec3",
     "Yaw",
     "distance",
+    "glass_at",
     "held_jug_hits_glass",
     "pour_point",
     "pours_into_glass",
@@ -116,13 +117,22 @@ def _rpy_matrix(rotation: Sequence[float]) -> tuple[tuple[float, float, float], 
             (-sp, cp * sr, cp * cr))
 
 
+def glass_at(bb: Blackboard) -> Sequence[float] | None:
+    """Where a pour-water blackboard's glass is (``glass_position_world``), if it has one."""
+    glass = bb.get("glass_position_world")
+    return None if glass is None else tuple(float(v) for v in glass)
+
+
 def held_jug_hits_glass(grasp_world: Sequence[float], rotation: Sequence[float],
-                        glass_world: Sequence[float]) -> bool:
+                        glass_world: Sequence[float] | None) -> bool:
     """Whether the jug, held at ``grasp_world`` with the gripper at roll-pitch-yaw
     ``rotation``, would reach into the glass whose rim centre is at ``glass_world`` (both in
     the world frame [m]): the jug's box, turned with the gripper, against the glass's, as
     axis-aligned bounds. The spout of the abstract skills is the grasp point, so a pour with
-    the spout less than the jug's own height above the rim puts the jug into the glass."""
+    the spout less than the jug's own height above the rim puts the jug into the glass. No
+    glass (``None``): nothing to hit."""
+    if glass_world is None:
+        return False
     r = _rpy_matrix(rotation)
     hx, hy, hz = JUG_HALF_EXTENTS_M
     low = [math.inf] * 3

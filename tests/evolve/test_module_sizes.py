@@ -23,7 +23,7 @@ STRICT = ("evolve/",)
 
 MODULES_ALLOWED = {
     "skillcompose/fsafile.py": 1049,
-    "skills/kinematic.py": 765,
+    "skills/kinematic.py": 760,
     "skills/kinematic_world.py": 715,
 }
 """Modules over the limit today, with their length in lines."""
