@@ -74,6 +74,7 @@ __all__ = [
     "DynamicSkill",
     "DynamicWorld",
     "Execution",
+    "Recover",
     "Via",
     "arm_touches_table",
     "cartesian_path",
@@ -532,10 +533,19 @@ in order, on the way from ``before`` to the plan (e.g. a pre-grasp pose 9 cm bac
 approach); each holds what ``before`` holds."""
 
 
+Recover = Callable[[DynamicWorld, Blackboard, np.random.Generator, RobotState, RobotState],
+                   None]
+"""A twin's way out after its motion failed: ``(world, bb, rng, before, planned)``, called
+once the failure is written (and fingers closed on something opened again); it may move the
+simulated robot (e.g. back the gripper out along its approach), after which the blackboard
+is written again from the simulation (the robot holding, at most, what it held before)."""
+
+
 def dynamic_twin(
     kinematic: KinematicSkill, *, world_keys: ObjectKeys | None = None,
     judge: Judge | None = None, prepare: Judge | None = None, via: Via | None = None,
     route: BaseRoute | None = None, settle_s: float = 0.0, writes: Iterable[str] = (),
+    recover: Recover | None = None,
 ) -> DynamicSkill:
     """The dynamic twin of ``kinematic`` (see the module docstring): plan with it, execute,
     write the blackboard from the simulation (with ``world_keys``), judge the motion
@@ -549,7 +559,9 @@ def dynamic_twin(
     before the blackboard is written (e.g. 2 s for a released object to come to rest).
     ``writes`` names world keys the twin writes beyond its kinematic twin's declaration
     (e.g. ``holding_jug`` after a drop); ``world_keys``' values for keys the twin does not
-    declare are left alone, never written against the blackboard's access check."""
+    declare are left alone, never written against the blackboard's access check.
+    ``recover``, when given, runs after a failed motion (e.g. a missed grasp backs out), the
+    failure's reason kept."""
     spec = kinematic.spec
     if writes:
         spec = dataclasses.replace(spec, writes=spec.writes | frozenset(writes))
@@ -585,6 +597,10 @@ def dynamic_twin(
                 return verdict
         if why is not None:
             _let_go(physics, bb, done, planned, before, world_keys)
+            if recover is not None:
+                recover(world, bb, rng, before, planned)
+                sync(physics, bb, planned=dataclasses.replace(planned, held=dict(before.held)),
+                     world_keys=world_keys)
             return failure or str(outcome)
         return str(outcome)
 

@@ -12,20 +12,28 @@ kinematic twin's; the motion is physics' (:func:`~skillcompose.skills.dynamic_wo
 and the blackboard's object positions are written from the simulation after every skill.
 
 - ``GraspParam(which)``: tucked arms first unfold (the torso raised, and lowered again
-  only when the unfolded arms then clear the simulated table), so that the IK starts
-  there; the kinematic twin plans the grasp (side, else top); the arm passes a pre-grasp
-  pose :data:`PRE_GRASP_M` back along the approach (and one above that), so the open
-  fingers come straight onto the object (a straight tool line solved backwards from the
-  plan, :func:`~skillcompose.skills.dynamic_world.cartesian_path`, each step clear of the
+  only when the unfolded arms then clear the simulated table; an arm whose unfolding
+  would sweep the table or an object unfolds wrist first, or panned out,
+  :func:`~skillcompose.skills.stacking_transits.unfold_route`), so that the IK starts
+  there; the kinematic twin plans the grasp (side, else top; a top plan is retried from
+  the side, :func:`_grasp_plan`); the arm
+  passes a pre-grasp pose :data:`PRE_GRASP_M` back along the approach (and one above
+  that), reached clear of both objects, so the open fingers come straight onto the object
+  (a straight tool line solved backwards from the plan,
+  :func:`~skillcompose.skills.dynamic_world.cartesian_path`, each step clear of the
   simulated table and the other object; when the plan's configuration has no such line,
   another configuration of the same grasp pose that has one replaces it,
-  :func:`_regrasp`), then the fingers close and hold it by friction. A motion on the way
-  whose line would touch the table or the other object goes over it with the shoulder
-  lifted, else with the torso raised (:func:`clear_transits`; also for
-  MoveGripperToStack). ``failure``: the kinematic reasons, ``missed`` (the fingers closed
-  on nothing or on the other object), ``blocked`` (a motion did not reach its goal),
-  ``hit_table``.
-- ``MoveGripperToStack(which, dx, dy, dz)``: the kinematic plan, reached by lifting the
+  :func:`_regrasp`, else the grasp turned about the object's axis, :func:`_turned`), then
+  the fingers close and hold it by friction. A motion on the way whose line would touch
+  the table or the other object goes over it with the shoulder lifted, else with the
+  torso raised (:mod:`~skillcompose.skills.stacking_transits`; also for
+  MoveGripperToStack). ``failure``: the kinematic reasons, ``missed`` (the fingers
+  closed on nothing or on the other object), ``blocked`` (a motion did not reach its
+  goal), ``hit_table``; a failed grasp opens the fingers and backs out along its approach
+  (:func:`_back_out`) before the retry plans.
+- ``MoveGripperToStack(which, dx, dy, dz)``: the kinematic plan (when it finds no arm
+  configuration, the goal with the gripper turned about the vertical,
+  :func:`_stack_plan`), reached by lifting the
   gripper straight up by :data:`LIFT_M` or until the held object clears the other's top
   (:func:`_lift_m`), then to :data:`LIFT_M` above the goal, then down; the held object is
   checked against the other object on the way. ``failure``: the kinematic reasons,
@@ -48,8 +56,7 @@ What physics produces (a slip, a topple, a collision with the table) ends as an 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
-from itertools import pairwise
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -70,20 +77,27 @@ from skillcompose.skills.dynamic_world import (
     arm_touches_table,
     cartesian_path,
     dynamic_twin,
+    follow_path,
     in_dynamic_world,
     sync,
     tool_world,
 )
 from skillcompose.skills.kinematic_world import (
+    GRASP_KEY,
     TABLE_KEY,
     TOOL_KEYS,
-    TORSO_RANGE_M,
+    KinematicSkill,
+    KinematicWorld,
     RobotState,
+    arms_for,
     commit,
+    grasp_pose_world,
     object_box,
+    object_position,
     reach,
     read_state,
     scene_world,
+    stack_object_name,
 )
 from skillcompose.skills.move_to_push_dynamic import (
     UNFOLD_TORSO_M,
@@ -93,9 +107,21 @@ from skillcompose.skills.move_to_push_dynamic import (
     unfolded,
 )
 from skillcompose.skills.network import Topology
+from skillcompose.skills.stacking_transits import (
+    CONTINUOUS,
+    clear_transits,
+    hop,
+    line_touches_table,
+    over,
+    touches,
+    unfold_route,
+    with_arm,
+    wrap,
+)
 from skillcompose.skills.stacking_world import DEFAULT_HALF_EXTENTS_M, held, stacked
 
 __all__ = [
+    "BACK_OUT_M",
     "LIFT_M",
     "OBJECT_FRICTION",
     "OBJECT_MASS_KG",
@@ -131,26 +157,23 @@ NEAR_RAD = 0.8
 """A waypoint is this close to the next in every joint [rad], at most."""
 REST_S = 2.0
 """Simulated time a released object is given to come to rest [s]."""
-TRANSIT_SAMPLES = 10
-"""A joint-space motion between waypoints is checked against the simulated table at this
-many points along it."""
-RAISE_RAD = (0.0, 0.3, 0.6)
-"""A motion whose joint-space line touches the table goes first to its goal with the
-shoulder lifted: by these amounts above the higher of its two ends [rad], the first clear."""
-SHOULDER_LIFT = 1
-"""The shoulder lift's index among an arm's joints (larger: lower)."""
-SHOULDER_LIFT_MIN_RAD = -0.5
-HOP_TORSO_M = TORSO_RANGE_M[1]
-"""A motion that cannot pass over the table with the shoulder lifted passes with the torso
-raised this high [m] (:func:`_hop`) ..."""
-HOP_MIN_M = 0.05
-"""... when that is at least this much above both its ends [m]."""
 REGRASP_TRIES = 8
 """GraspParam: when no straight approach line ends in the kinematic plan's configuration,
 this many other IK solutions of the pre-grasp pose are tried as its start (:func:`_regrasp`)."""
-CONTINUOUS = (4, 6)
-"""The continuous joints' indices among an arm's joints (forearm and wrist roll), which
-turn the short way round."""
+BACK_OUT_M = PRE_GRASP_M
+"""A failed grasp opens the fingers and backs the gripper out this far along its approach
+[m] (:func:`_back_out`) ..."""
+BACK_OUT_MIN_M = 0.02
+"""... or as far as its straight line goes, when that is at least this far [m] ..."""
+BACK_OUT_SPEED_M_S = 0.1
+"""... at this tool speed [m/s]."""
+TURN_RAD = tuple(sign * k * 0.25 for k in (1, 2, 3, 4) for sign in (1, -1))
+"""GraspParam: when neither the plan's nor another configuration of its grasp pose has a
+clear straight approach, the grasp is turned about the object's vertical axis by these
+angles [rad], the first with one replacing the plan (:func:`_turned`)."""
+SIDE_RETRIES = 2
+"""GraspParam: when the kinematic plan grasps from above, its preferred side grasp is tried
+this many times more (:func:`_grasp_plan`)."""
 
 
 # -- the episode -------------------------------------------------------------------------------
@@ -201,116 +224,6 @@ def _near(world: DynamicWorld, state: RobotState, arm: str, target: pin.SE3, bb:
                       answer.state.q_arm_rad, state.held, state.arm_in_use)
 
 
-def _with_arm(state: RobotState, arm: Arm, q: Sequence[float]) -> RobotState:
-    return RobotState(state.base_pose_world, state.torso_height_m,
-                      {**state.q_arm_rad, arm: tuple(q)}, state.held, state.arm_in_use)
-
-
-def line_touches_table(physics: PhysicsWorld, a: RobotState, b: RobotState, arm: Arm, *,
-                       samples: int = TRANSIT_SAMPLES, objects: Sequence[str] = (),
-                       carried: str | None = None) -> bool:
-    """Whether ``arm`` touches the simulated table (or one of ``objects``) somewhere on the
-    motion from ``a`` to ``b`` as :func:`~skillcompose.skills.dynamic_world.execute` makes
-    it (at ``b``'s base; the ends excluded): the servo's straight line in joint space, at
-    ``b``'s torso when the torso rises (it rises first) and at ``a``'s when it lowers (it
-    lowers last), and the torso's own vertical motion, each checked at ``samples`` points;
-    with ``carried``, the object the arm holds is checked against ``objects`` too."""
-    qa, qb = a.q_arm_rad[arm], b.q_arm_rad[arm]
-    delta = [_wrap(y - x) if j in CONTINUOUS else y - x
-             for j, (x, y) in enumerate(zip(qa, qb, strict=True))]
-    za, zb = a.torso_height_m, b.torso_height_m
-    lowers = zb < za
-    inner = [k / samples for k in range(1, samples)]
-
-    def at(q: Sequence[float], z: float) -> RobotState:
-        return dataclasses.replace(_with_arm(b, arm, q), torso_height_m=z)
-
-    arm_line = [at([x + t * d for x, d in zip(qa, delta, strict=True)], za if lowers else zb)
-                for t in inner] if any(abs(d) > 1e-9 for d in delta) else []
-    torso_line = [at(qb if lowers else qa, za + t * (zb - za)) for t in inner] \
-        if abs(zb - za) > 1e-9 else []
-    corner = [at(qb, za) if lowers else at(qa, zb)] if arm_line and torso_line else []
-    poses = [*arm_line, *corner, *torso_line] if lowers else \
-        [*torso_line, *corner, *arm_line]
-    return any(_touches(physics, s, arm, objects, carried) for s in poses)
-
-
-def _wrap(angle: float) -> float:
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def clear_transits(physics: PhysicsWorld, arm: Arm, start: RobotState,
-                   waypoints: Sequence[RobotState], *, objects: Sequence[str] = (),
-                   carried: str | None = None) -> list[RobotState]:
-    """``waypoints`` (from ``start``), with configurations inserted before each whose motion
-    touches the simulated table or one of ``objects`` (the arm, or the object it has
-    ``carried``): over it with the shoulder lifted
-    (:func:`_over`), else over it with the torso raised (:func:`_hop`); the waypoint left as
-    it is when there are none."""
-    out: list[RobotState] = []
-    at = start
-    for goal in waypoints:
-        if line_touches_table(physics, at, goal, arm, objects=objects, carried=carried):
-            out.extend(_over(physics, arm, at, goal, objects, carried)
-                       or _hop(physics, arm, at, goal, objects, carried))
-        out.append(goal)
-        at = goal
-    return out
-
-
-def _touches(physics: PhysicsWorld, state: RobotState, arm: Arm,
-             objects: Sequence[str], carried: str | None = None) -> bool:
-    return bool(arm_touches_table(physics, state, arm, objects=objects, carried=carried))
-
-
-def _over(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
-          objects: Sequence[str] = (), carried: str | None = None) -> list[RobotState]:
-    """The configurations to pass from ``start`` to ``goal`` over the table: ``goal``'s
-    joints with the shoulder lifted (:data:`RAISE_RAD`), else ``start``'s lifted and then
-    ``goal``'s, the first whose motions are all clear of the simulated table and
-    ``objects`` (but for lifting off it, when ``start`` touches it); none when there is no
-    such."""
-    for extra in RAISE_RAD:
-        lift = max(SHOULDER_LIFT_MIN_RAD, min(start.q_arm_rad[arm][SHOULDER_LIFT],
-                                              goal.q_arm_rad[arm][SHOULDER_LIFT]) - extra)
-        raised = []
-        for end in (start, goal):
-            q = list(end.q_arm_rad[arm])
-            q[SHOULDER_LIFT] = lift
-            raised.append(_with_arm(goal, arm, q))
-        for via in ([raised[1]], raised):
-            if any(_touches(physics, s, arm, objects, carried) for s in via):
-                continue
-            legs = list(pairwise([start, *via, goal]))
-            if len(via) == 2 and _touches(physics, start, arm, objects, carried):
-                legs = legs[1:]  # lifting off the table it touches already
-            if not any(line_touches_table(physics, a, b, arm, objects=objects,
-                                          carried=carried) for a, b in legs):
-                return via
-    return []
-
-
-def _hop(physics: PhysicsWorld, arm: Arm, start: RobotState, goal: RobotState,
-         objects: Sequence[str] = (), carried: str | None = None) -> list[RobotState]:
-    """The configurations to pass from ``start`` to ``goal`` with the torso raised to the
-    top (:data:`HOP_TORSO_M`): the torso rises (the whole arm straight up), the arm moves up
-    there, and the torso comes down onto ``goal`` (straight down); none when the torso is
-    not :data:`HOP_MIN_M` higher so, or a motion on the way touches the simulated table or
-    ``objects`` (lifting off what ``start`` touches aside)."""
-    top = HOP_TORSO_M
-    if top - max(start.torso_height_m, goal.torso_height_m) < HOP_MIN_M:
-        return []
-    up = dataclasses.replace(_with_arm(goal, arm, start.q_arm_rad[arm]), torso_height_m=top)
-    across = dataclasses.replace(goal, torso_height_m=top)
-    if _touches(physics, up, arm, objects, carried) or \
-            _touches(physics, across, arm, objects, carried):
-        return []
-    if line_touches_table(physics, up, across, arm, objects=objects, carried=carried) or \
-            line_touches_table(physics, across, goal, arm, objects=objects, carried=carried):
-        return []
-    return [up, across]
-
-
 def _others(bb: Blackboard, target: str | None) -> tuple[str, ...]:
     """The stacking objects other than ``target`` and those held: what an arm must not
     touch on the way."""
@@ -328,10 +241,14 @@ def _avoid_scene(bb: Blackboard, objects: Sequence[str]) -> Scene:
 def _grasp_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
                before: RobotState, planned: RobotState) -> Sequence[RobotState]:
     """GraspParam's waypoints: :data:`PRE_GRASP_M` back along the approach, and
-    :data:`LIFT_M` above that, each near the next in joint space; the approach's straight
-    line clear of the table and of the other object. When no such line ends in the plan's
-    configuration, another configuration of the same grasp pose that has one
-    (:func:`_regrasp`) replaces the plan on the blackboard."""
+    :data:`LIFT_M` above that, each near the next in joint space, reached clear of the
+    table and of both objects (a joint-space sweep to the pre-grasp knocked the target
+    over); the approach's straight line clear of the table and of the other object. When
+    no such line ends in the plan's configuration, or its start cannot be reached from the
+    arm as it is without touching the table or an object (not even round them,
+    :mod:`~skillcompose.skills.stacking_transits`), another configuration of the same
+    grasp pose that has one (:func:`_regrasp`), else the grasp turned about the object's
+    axis (:func:`_turned`), replaces the plan on the blackboard."""
     arm = _moved_arm(before, planned)
     if arm is None:
         return ()
@@ -341,25 +258,42 @@ def _grasp_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
     pre_pose = pin.SE3(grasp.rotation, back)
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
                       before.held, planned.arm_in_use)
+    target = bb.get("grasp_target")
+    near = (*avoid, *([str(target)] if target else []))
+    physics = world.physics
+
+    def reachable(first: RobotState) -> bool:  # from the arm as it is, clear or around
+        return physics is None or not line_touches_table(
+            physics, before, first, arm, objects=near) or bool(
+            over(physics, arm, before, first, near) or hop(physics, arm, before, first, near))
+
     line = _straight_back(world, bb, rng, keep, arm, pre_pose, avoid)
-    if not line:
-        found = _regrasp(world, bb, rng, keep, arm, grasp, pre_pose, avoid)
+    if not line or not reachable(line[0]):
+        found = _regrasp(world, bb, rng, keep, arm, grasp, pre_pose, avoid, reachable) or \
+            _turned(world, bb, rng, keep, arm, grasp, avoid, reachable)
         if found is not None:
             keep, line = found
             commit(world.kinematic, bb, dataclasses.replace(keep, held=planned.held))
+            grasp = tool_world(world, keep, arm)
+            back = grasp.translation - PRE_GRASP_M * grasp.rotation[:, 0]
+            pre_pose = pin.SE3(grasp.rotation, back)
     pre = line[0] if line else _near(world, keep, arm, pre_pose, bb, rng)
     if pre is None:
-        return ()
+        return _transit(world, arm, before, (), keep, avoid)
     up = np.array([0.0, 0.0, LIFT_M])
     high = _near(world, pre, arm, pin.SE3(grasp.rotation, back + up), bb, rng)
-    via = [*([high] if high is not None else []), *(line or [pre])]
-    return _transit(world, arm, before, via, keep, avoid)
+    first = [*([high] if high is not None else []), pre]
+    if physics is None:
+        return [*first, *line[1:]]
+    reached = clear_transits(physics, arm, before, first, objects=near)
+    return [*reached, *_transit(world, arm, pre, line[1:], keep, avoid)]
 
 
 def _transit(world: DynamicWorld, arm: Arm, before: RobotState, via: Sequence[RobotState],
              planned: RobotState, objects: Sequence[str] = ()) -> Sequence[RobotState]:
-    """``via`` with the clear transits (:func:`clear_transits`) on the way from ``before``
-    to ``planned``, the plan itself left out."""
+    """``via`` with the clear transits
+    (:func:`~skillcompose.skills.stacking_transits.clear_transits`) on the way from
+    ``before`` to ``planned``, the plan itself left out."""
     if world.physics is None:
         return via
     keep = RobotState(planned.base_pose_world, planned.torso_height_m, planned.q_arm_rad,
@@ -380,7 +314,7 @@ def _straight_back(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator
     if physics is None:
         return []
     path = cartesian_path(world, planned, arm, pre, _avoid_scene(bb, objects), rng,
-                          clear=lambda s: not _touches(physics, s, arm, objects))
+                          clear=lambda s: not touches(physics, s, arm, objects))
     if not path or path[-1][1] < PRE_GRASP_M - 1e-6:
         return []
     return [s for s, _ in reversed(path)]
@@ -388,12 +322,14 @@ def _straight_back(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator
 
 def _regrasp(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
              planned: RobotState, arm: Arm, grasp: pin.SE3, pre: pin.SE3,
-             objects: Sequence[str] = ()) -> tuple[RobotState, list[RobotState]] | None:
+             objects: Sequence[str] = (), reachable: Callable[[RobotState], bool] | None = None,
+             ) -> tuple[RobotState, list[RobotState]] | None:
     """Another configuration of ``planned``'s arm for the grasp pose ``grasp`` (torso and
     base kept), reached on a straight line from the pre-grasp pose ``pre``: IK of ``pre``
     warm-started from :data:`REGRASP_TRIES` random arms (the run's generator), each followed
     by the straight line onto ``grasp``, every step clear of the simulated table and
-    ``objects``; ``(grasp configuration, the line's robots before it)``, or None."""
+    ``objects``, and its start ``reachable`` (when given) from the arm as it is;
+    ``(grasp configuration, the line's robots before it)``, or None."""
     physics = world.physics
     if physics is None:
         return None
@@ -401,23 +337,71 @@ def _regrasp(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
     chain = world.kinematic.chains[arm]
 
     def clear(s: RobotState) -> bool:
-        return not _touches(physics, s, arm, objects)
+        return not touches(physics, s, arm, objects)
 
     for _ in range(REGRASP_TRIES):
-        start = _with_arm(planned, arm, [float(v) for v in chain.sample_coordinates(rng)[1:]])
+        start = with_arm(planned, arm, [float(v) for v in chain.sample_coordinates(rng)[1:]])
         answer = reach(world.kinematic, start, arm, pre, scene, rng, move_torso=False,
                        diagnose=False, restarts=0)
         if answer.state is None:
             continue
         first = RobotState(planned.base_pose_world, planned.torso_height_m,
                            answer.state.q_arm_rad, planned.held, planned.arm_in_use)
-        if not clear(first):
+        if not clear(first) or (reachable is not None and not reachable(first)):
             continue
         path = cartesian_path(world, first, arm, grasp, scene, rng, clear=clear)
         if not path or path[-1][1] < PRE_GRASP_M - 1e-6:
             continue
         return path[-1][0], [first, *(s for s, _ in path[:-1])]
     return None
+
+
+def _turned(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+            planned: RobotState, arm: Arm, grasp: pin.SE3, objects: Sequence[str] = (),
+            reachable: Callable[[RobotState], bool] | None = None,
+            ) -> tuple[RobotState, list[RobotState]] | None:
+    """The grasp turned about the vertical through its tool point (the object's axis) by
+    each of :data:`TURN_RAD` in turn (a side grasp then comes from another bearing, a top
+    grasp closes across other faces): IK of the turned pose warm-started from ``planned``
+    (torso and base kept), clear of the simulated table and ``objects``, whose straight
+    line back to its own pre-grasp pose (:func:`_straight_back`) is clear too, from which
+    the gripper can be lifted (:func:`_liftable`), and whose line's start is ``reachable``
+    (when given); the first such ``(grasp configuration, the line's robots before it)``, or
+    None. Where the
+    planned bearing has no clear approach (the other object beside the line, a joint
+    limit), the open fingers came down on the other object or struck the table."""
+    physics = world.physics
+    if physics is None:
+        return None
+    scene = _avoid_scene(bb, objects)
+    for turn in TURN_RAD:
+        rotation = pin.rpy.rpyToMatrix(0.0, 0.0, turn) @ grasp.rotation
+        target = pin.SE3(rotation, grasp.translation)
+        answer = reach(world.kinematic, planned, arm, target, scene, rng, move_torso=False,
+                       diagnose=False)
+        if answer.state is None:
+            continue
+        at = RobotState(planned.base_pose_world, planned.torso_height_m,
+                        answer.state.q_arm_rad, planned.held, planned.arm_in_use)
+        if touches(physics, at, arm, objects):
+            continue
+        pre = pin.SE3(rotation, grasp.translation - PRE_GRASP_M * rotation[:, 0])
+        line = _straight_back(world, bb, rng, at, arm, pre, objects)
+        if line and _liftable(world, rng, at, arm, target) and (
+                reachable is None or reachable(line[0])):
+            return at, line
+    return None
+
+
+def _liftable(world: DynamicWorld, rng: np.random.Generator, state: RobotState, arm: Arm,
+              grasp: pin.SE3) -> bool:
+    """Whether ``arm``'s tool at ``grasp`` in ``state`` goes straight up by :data:`LIFT_M`
+    (:func:`~skillcompose.skills.dynamic_world.cartesian_path`; torso and base kept), as
+    MoveGripperToStack first lifts it: a turned grasp near a joint limit could not, and the
+    carry tore the object from the fingers."""
+    up = pin.SE3(grasp.rotation, grasp.translation + np.array([0.0, 0.0, LIFT_M]))
+    path = cartesian_path(world, state, arm, up, Scene(()), rng)
+    return bool(path) and path[-1][1] >= LIFT_M - 1e-6
 
 
 def _stack_via(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
@@ -470,7 +454,7 @@ def _lift_line(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
     top = pin.SE3(start.rotation, start.translation + np.array([0.0, 0.0, lift]))
     carried = before.held[arm]
     path = cartesian_path(world, before, arm, top, Scene(()), rng,  # the table: by `clear`
-                          clear=lambda s: not _touches(physics, s, arm, objects, carried))
+                          clear=lambda s: not touches(physics, s, arm, objects, carried))
     if not path or path[-1][1] < LIFT_M - 1e-6:
         return []
     out: list[RobotState] = []
@@ -516,20 +500,131 @@ def _unfold(physics: PhysicsWorld, bb: Blackboard, rng: np.random.Generator,
     high = max(torso, UNFOLD_TORSO_M)
     if high > torso:
         physics.move_torso(high, max(0.5, (high - torso) / 0.1), settle_s=0.0)
+    names = tuple(str(n) for n in bb.get("object_positions_world") or {})
+    at = dataclasses.replace(state, torso_height_m=high)
     for arm in moving:
-        physics.track_arm(arm, ready.q_arm_rad[arm], 1.5, settle_s=0.1)
+        goal = with_arm(at, arm, ready.q_arm_rad[arm])
+        route = unfold_route(physics, arm, at, goal, names)
+        for k, waypoint in enumerate(route):
+            last = k == len(route) - 1
+            q = waypoint.q_arm_rad[arm]
+            change = max(abs(a - b) for a, b in zip(q, physics.arm_q(arm), strict=True))
+            physics.track_arm(arm, q, 1.5 if last else max(0.5, change),
+                              settle_s=0.1 if last else 0.0)
+        at = goal
     if high > torso and not any(arm_touches_table(physics, ready, arm) for arm in ARMS):
         physics.move_torso(torso, max(0.5, (high - torso) / 0.1))
     sync(physics, bb, planned=state, world_keys=object_keys)
     return None
 
 
+def _back_out(world: DynamicWorld, bb: Blackboard, rng: np.random.Generator,
+              before: RobotState, planned: RobotState) -> None:
+    """After a failed grasp: the fingers open (closed on nothing, they stayed shut, and the
+    retry pushed the object ahead with their tips), and the gripper backs out
+    :data:`BACK_OUT_M` along the approach (the planned grasp's tool x axis) on a straight
+    line (:func:`~skillcompose.skills.dynamic_world.cartesian_path`, clear of the simulated
+    table and the other object), else as far as that line goes, else straight up by
+    :data:`LIFT_M`; so the retry plans from clear of the object instead of nudging it on."""
+    physics = world.physics
+    arm = next((a for a in ARMS if planned.held[a] is not None and before.held[a] is None),
+               None)
+    if physics is None or arm is None:
+        return
+    physics.open_gripper(arm)
+    now = read_state(bb)
+    avoid = _others(bb, bb.get("grasp_target"))
+    scene = _avoid_scene(bb, avoid)
+    start = tool_world(world, now, arm)
+    away = -np.asarray(tool_world(world, planned, arm).rotation[:, 0])
+    for direction, distance in ((away, BACK_OUT_M), (np.array([0.0, 0.0, 1.0]), LIFT_M)):
+        goal = pin.SE3(start.rotation, start.translation + distance * direction)
+        path = cartesian_path(world, now, arm, goal, scene, rng,
+                              clear=lambda s: not touches(physics, s, arm, avoid))
+        if path and path[-1][1] >= BACK_OUT_MIN_M:
+            follow_path(physics, arm, [s for s, _ in path], BACK_OUT_SPEED_M_S)
+            return
+
+
 # -- the skills --------------------------------------------------------------------------------
-grasp_param = dynamic_twin(skills_kinematic.grasp_param, world_keys=object_keys,
-                           prepare=_unfold, via=_grasp_via, route=base_route)
+def _grasp_plan(world: KinematicWorld, bb: Blackboard, rng: np.random.Generator,
+                **params: Any) -> str:
+    """GraspParam's plan: the kinematic twin's; when it grasps from above, the side grasp
+    it prefers is tried :data:`SIDE_RETRIES` times more (its IK restarts from random arms
+    and now and then misses a side grasp that exists), the first found replacing the plan.
+    Held from above, an object far from the base could not be carried over the other (the
+    arm cannot reach as far from above; the kinematic twin grasped the same object from the
+    side)."""
+    before = read_state(bb)
+    outcome = str(skills_kinematic.grasp_param.impl(world, bb, rng, **params))
+    name = bb.get("grasp_target")
+    if outcome != "success" or bb.get(GRASP_KEY) != "top" or name is None:
+        return outcome
+    position = object_position(bb, str(name))
+    if position is None:
+        return outcome
+    pose = grasp_pose_world("side", before.base_pose_world, position)
+    for _ in range(SIDE_RETRIES):
+        for arm in arms_for(before, position):
+            answer = reach(world, before, arm, pose, scene_world(bb), rng)
+            if answer.state is not None:
+                bb[GRASP_KEY] = "side"
+                commit(world, bb, RobotState(answer.state.base_pose_world,
+                                             answer.state.torso_height_m,
+                                             answer.state.q_arm_rad,
+                                             {**answer.state.held, arm: str(name)}, arm))
+                return outcome
+    return outcome
+
+
+def _stack_plan(world: KinematicWorld, bb: Blackboard, rng: np.random.Generator,
+                **params: Any) -> str:
+    """MoveGripperToStack's plan: the kinematic twin's; when that finds no arm configuration
+    for the goal (``unreachable``, ``joint_limits``), the same goal with the holding gripper
+    turned about the vertical by each of :data:`TURN_RAD` (the held object is upright
+    either way, only turned), of those the arm reaches the one nearest the arm as it is (the
+    smallest largest joint change: a far one swept the upper arm through the table); else
+    the kinematic failure. The side grasp's pose points along the bearing from the base,
+    and an object far to one side of the robot was reachable only turned."""
+    outcome = str(skills_kinematic.move_gripper_to_stack.impl(world, bb, rng, **params))
+    if outcome == "success" or bb.get("last_failure_reason") not in ("unreachable",
+                                                                      "joint_limits"):
+        return outcome
+    state = read_state(bb)
+    arm = next((a for a in ARMS if state.held[a] is not None), None)
+    name = stack_object_name(bb, float(params.get("which", 1.0)))
+    anchor = None if name is None else object_position(bb, name)
+    if arm is None or anchor is None:
+        return outcome
+    position = [a + float(params.get(k, d)) for a, k, d in
+                zip(anchor, ("dx", "dy", "dz"), (0.0, 0.0, 0.1), strict=True)]
+    goal = grasp_pose_world(bb.get(GRASP_KEY) or "top", state.base_pose_world, position)
+    table = Scene(scene_world(bb).boxes)
+    found: list[tuple[float, RobotState]] = []
+    for turn in TURN_RAD:
+        turned = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, turn) @ goal.rotation, goal.translation)
+        answer = reach(world, state, arm, turned, table, rng)
+        if answer.state is not None:
+            change = max(abs(wrap(b - a)) if j in CONTINUOUS else abs(b - a) for j, (a, b) in
+                         enumerate(zip(state.q_arm_rad[arm], answer.state.q_arm_rad[arm],
+                                       strict=True)))
+            found.append((change, answer.state))
+    if not found:
+        return outcome
+    best = min(found, key=lambda item: item[0])[1]
+    commit(world, bb, RobotState(best.base_pose_world, best.torso_height_m, best.q_arm_rad,
+                                 best.held, arm))
+    return "success"
+
+
+grasp_param = dynamic_twin(KinematicSkill(skills_kinematic.grasp_param.spec, _grasp_plan),
+                           world_keys=object_keys,
+                           prepare=_unfold, via=_grasp_via, route=base_route,
+                           recover=_back_out)
 """The dynamic GraspParam (module docstring)."""
-move_gripper_to_stack = dynamic_twin(skills_kinematic.move_gripper_to_stack,
-                                     world_keys=object_keys, via=_stack_via, route=base_route)
+move_gripper_to_stack = dynamic_twin(
+    KinematicSkill(skills_kinematic.move_gripper_to_stack.spec, _stack_plan),
+    world_keys=object_keys, via=_stack_via, route=base_route)
 """The dynamic MoveGripperToStack (module docstring)."""
 open_gripper = dynamic_twin(skills_kinematic.open_gripper, world_keys=object_keys,
                             settle_s=REST_S)

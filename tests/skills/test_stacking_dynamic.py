@@ -16,7 +16,9 @@ pytest.importorskip("mujoco")
 from skillcompose import Blackboard, compile_fsa, load_fsa
 from skillcompose.executor import trial_rngs
 from skillcompose.robots.model import ARMS
+from skillcompose.skills import kinematic as skills_kinematic
 from skillcompose.skills import stacking_dynamic as sd
+from skillcompose.skills import stacking_transits as transits
 from skillcompose.skills.dynamic_world import (
     DYNAMIC_FAILURE_REASONS,
     arm_touches_table,
@@ -24,7 +26,13 @@ from skillcompose.skills.dynamic_world import (
     sync,
     world_of,
 )
-from skillcompose.skills.kinematic_world import FAILURE_REASONS, read_state
+from skillcompose.skills.kinematic_world import (
+    FAILURE_REASONS,
+    GRASP_KEY,
+    KinematicSkill,
+    grasp_pose_world,
+    read_state,
+)
 from skillcompose.skills.move_to_push_dynamic import unfolded
 from skillcompose.skills.stacking_world import stacked
 from skillcompose.task import Task, load_task
@@ -124,7 +132,7 @@ def _runs(n: int, first: int = 0, trace: bool = False) -> list[tuple[object, ...
 @pytest.mark.slow
 def test_the_shipped_fsa_stacks_on_most_scenes() -> None:
     scores = [o[0] for o in _runs(4, first=1)]
-    assert sum(s == 0.0 for s in scores) >= 2, scores  # measured: 3 of these 4
+    assert sum(s == 0.0 for s in scores) >= 3, scores  # measured: all 4
 
 
 @pytest.mark.slow
@@ -196,7 +204,8 @@ def test_unfolding_near_the_table_leaves_the_base_where_it_is() -> None:
     assert world.physics.torso_m() > 0.25  # kept up: lowered, the arms press on the table
 
 
-def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned() -> None:
+def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     # scene 1: from the kinematic plan's arm no straight line leads back to the pre-grasp
     # (a joint limit); another arm for the same grasp pose has one, and the grasp holds
     task, bb, rng, world = _prepared(1)
@@ -208,12 +217,9 @@ def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned() -> None:
         replanned.append(found is not None)
         return found
 
-    sd._regrasp = spy
-    try:
-        assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-            bb.get("last_failure_detail")
-    finally:
-        sd._regrasp = regrasp
+    monkeypatch.setattr(sd, "_regrasp", spy)
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
     assert replanned == [True]
     arm = bb["arm_in_use"]
     assert world.physics.held_object(arm) == bb["grasp_target"]
@@ -248,3 +254,141 @@ def test_a_carried_box_is_lifted_above_the_other_and_the_check_sees_it() -> None
                for s, _ in shifted)
     assert not any(carried in arm_touches_table(physics, s, arm, objects=(other,))
                    for s, _ in shifted)
+
+
+def _upright_near(world: Any, name: str, at: np.ndarray, within_m: float = 0.01) -> bool:
+    pose = np.array(world.physics.object_pose(name)[:3])
+    return bool(world.physics.upright(name)) and float(np.linalg.norm(pose - at)) < within_m
+
+
+def test_a_missed_grasp_opens_and_backs_out_along_its_approach_and_the_retry_holds(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # the fingers closed on nothing used to stay shut, and the retry pushed the box ahead
+    # with their tips until it was out of reach (scenes 20, 65, 70, 92): a failed grasp now
+    # opens them and backs the gripper out along the approach, and the retry grasps
+    task, bb, rng, world = _prepared(1)
+    physics = world.physics
+    close = physics.close_gripper
+    at_close: list[Any] = []
+
+    def miss_once(arm: Any, *a: Any, **k: Any) -> Any:
+        got = close(arm, *a, **k)
+        if not at_close:  # the first grasp: report nothing held (the fingers did close)
+            at_close.append((arm, physics.tool_transform(arm), physics.gripper_opening_rad(arm)))
+            return None
+        return got
+
+    monkeypatch.setattr(physics, "close_gripper", miss_once)
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "failure"
+    assert bb["last_failure_reason"] == "missed"
+    arm, grasp, closed = at_close[0]
+    assert closed < 0.5  # they had closed on the box
+    assert physics.gripper_opening_rad(arm) > 0.5  # open again
+    assert bb[f"held_object_{arm}"] is None and physics.held_object(arm) is None
+    moved = np.array(physics.tool_transform(arm).translation - grasp.translation)
+    along = float(moved @ grasp.rotation[:, 0])
+    assert along == pytest.approx(-sd.BACK_OUT_M, abs=0.015)  # backed out along the approach
+    assert float(np.linalg.norm(moved - along * grasp.rotation[:, 0])) < 0.015  # on its line
+    target = bb["grasp_target"]
+    box = np.array(physics.object_pose(target)[:3])
+    assert physics.upright(target)
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    assert physics.held_object(arm) == target
+    assert float(np.linalg.norm(np.array(physics.object_pose(target)[:2]) - box[:2])) < 0.02
+
+
+def test_a_grasp_whose_approach_passes_the_other_object_comes_from_another_bearing(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # scene 13: the planned bearing's approach passes the other object (no clear straight
+    # line, nor from another arm); the open fingers came down on it and knocked it over.
+    # The grasp turned about the target's axis has a clear line, and the other stays put
+    task, bb, rng, world = _prepared(13)
+    turned: list[bool] = []
+    turn = sd._turned
+
+    def spy(*a: Any, **k: Any) -> Any:
+        found = turn(*a, **k)
+        turned.append(found is not None)
+        return found
+
+    monkeypatch.setattr(sd, "_turned", spy)
+    target = bb["object_positions_world"]
+    other = {n: np.array(world.physics.object_pose(n)[:3]) for n in target}
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    assert turned == [True]
+    arm = bb["arm_in_use"]
+    held_name = bb["grasp_target"]
+    assert world.physics.held_object(arm) == held_name
+    (name,) = [n for n in target if n != held_name]
+    assert _upright_near(world, name, other[name])
+    planned = grasp_pose_world("side", read_state(bb).base_pose_world,
+                               world.physics.object_pose(held_name)[:3])
+    yaw = float(pin.rpy.matrixToRpy(world.physics.tool_transform(arm).rotation)[2])
+    bearing = float(pin.rpy.matrixToRpy(planned.rotation)[2])
+    assert abs((yaw - bearing + np.pi) % (2 * np.pi) - np.pi) > 0.2  # another bearing
+
+
+def test_unfolding_beside_the_table_goes_round_it_and_the_objects() -> None:
+    # scene 11: unfolded straight, the left hand knocked the bottle over and the right
+    # elbow swept into the table's edge, where the arm stayed jammed
+    _, bb, rng, world = _prepared(11)
+    physics = world.physics
+    names = tuple(bb["object_positions_world"])
+    start = {n: np.array(physics.object_pose(n)[:3]) for n in names}
+    state = read_state(bb)
+    high = dataclasses.replace(state, torso_height_m=0.3)
+    ready = unfolded(state, ARMS)
+    goal = transits.with_arm(high, "right", ready.q_arm_rad["right"])
+    assert sd.line_touches_table(physics, high, goal, "right", objects=names)
+    route = transits.unfold_route(physics, "right", high, goal, names)
+    assert len(route) > 1 and route[-1] is goal
+    assert sd._unfold(physics, bb, rng, {}) is None
+    assert all(_upright_near(world, n, start[n]) for n in names)
+    assert not physics.robot_contacts("table")
+    for arm in ARMS:
+        assert np.abs(np.array(physics.arm_q(arm)) - ready.q_arm_rad[arm]).max() < 0.05
+
+
+def test_a_stack_goal_out_of_the_arms_limits_is_reached_with_the_gripper_turned() -> None:
+    # scene 81: the side grasp's pose along the bearing from the base is reachable only
+    # outside the joint limits; turned about the vertical it is reached, and the box is
+    # carried there in the fingers
+    task, bb, rng, world = _prepared(81)
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    arm = bb["arm_in_use"]
+    carried = bb[f"held_object_{arm}"]
+    assert skills_kinematic.move_gripper_to_stack.impl(world.kinematic, bb, rng, **STACK) \
+        == "failure"
+    assert bb["last_failure_reason"] == "joint_limits"
+    assert _call(task, bb, rng, "MoveGripperToStack", **STACK) == "success", \
+        bb.get("last_failure_detail")
+    assert world.physics.held_object(arm) == carried
+    assert _call(task, bb, rng, "OpenGripper") == "success"
+    assert stacked(bb)
+
+
+def test_a_grasp_planned_from_above_is_retried_from_the_side(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # scene 42: the kinematic plan's IK missed the side grasp and took the box from above;
+    # held so, the other object (1 m from the base) was beyond reach. A side grasp exists
+    # and replaces it, and the box is then carried onto the other
+    task, bb, rng, world = _prepared(42)
+    kinds: list[str] = []
+    plan = skills_kinematic.grasp_param
+
+    def spy(*a: Any, **k: Any) -> Any:
+        out = plan.impl(*a, **k)
+        kinds.append(a[1].get(GRASP_KEY))
+        return out
+
+    monkeypatch.setattr(skills_kinematic, "grasp_param", KinematicSkill(plan.spec, spy))
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    assert kinds == ["top"] and bb[GRASP_KEY] == "side"
+    arm = bb["arm_in_use"]
+    assert world.physics.held_object(arm) == bb["grasp_target"]
+    assert _call(task, bb, rng, "MoveGripperToStack", **STACK) == "success", \
+        bb.get("last_failure_detail")
