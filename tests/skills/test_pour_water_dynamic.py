@@ -135,6 +135,20 @@ def test_the_reference_fsa_pours_on_the_dynamic_backend(task: Task) -> None:
 
 
 @pytest.mark.slow
+def test_the_fsa_evolved_against_the_physics_pours_there(task: Task) -> None:
+    # docs/results/pour_water_physics.fsa.yaml, evolved with reach=physics: measured 100 of
+    # 100 on the dynamic backend; the one evolved with reach=pr2 spills there
+    compiled = task.compile(load_fsa(ROOT / "docs" / "results" / "pour_water_physics.fsa.yaml"))
+    trial = next(iter(task.each_trial(compiled, 3, 1)))
+    assert trial.fitness == 0.0 and trial.blackboard is not None
+    assert trial.blackboard["water"] == "glass"
+    spilled = task.compile(load_fsa(ROOT / "docs" / "results" / "pour_water_best.fsa.yaml"))
+    trial = next(iter(task.each_trial(spilled, 3, 1)))
+    assert trial.fitness > 0.0 and trial.blackboard is not None
+    assert trial.blackboard["water"] == "spilled"
+
+
+@pytest.mark.slow
 def test_same_seed_same_episode(task: Task) -> None:
     compiled = task.compile(load_fsa(REFERENCE))
     world = world_of(task.registry)
