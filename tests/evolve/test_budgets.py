@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from itertools import accumulate
 from pathlib import Path
 from typing import Any
 
@@ -49,11 +50,7 @@ def unlimited(task: Task) -> EvolutionResult:
 
 def _jobs(r: EvolutionResult) -> list[int]:
     """Genome evaluations of the run after each generation."""
-    out, total = [], 0
-    for h in r.history:
-        total += h.faults["jobs"]
-        out.append(total)
-    return out
+    return list(accumulate(h.faults["jobs"] for h in r.history))
 
 
 def _same(a: EvolutionResult, b: EvolutionResult) -> None:

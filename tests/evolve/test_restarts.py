@@ -6,6 +6,7 @@ population grows."""
 from __future__ import annotations
 
 import sys
+from itertools import accumulate
 from pathlib import Path
 from typing import Any
 
@@ -52,11 +53,7 @@ def _run(r: EvolutionResult) -> tuple[object, ...]:
 
 
 def _jobs(r: EvolutionResult) -> list[int]:
-    out, total = [], 0
-    for h in r.history:
-        total += h.faults["jobs"]
-        out.append(total)
-    return out
+    return list(accumulate(h.faults["jobs"] for h in r.history))
 
 
 def test_the_population_after_restarts_grows_by_its_factor_up_to_its_cap() -> None:

@@ -204,20 +204,26 @@ def test_unfolding_near_the_table_leaves_the_base_where_it_is() -> None:
     assert world.physics.torso_m() > 0.25  # kept up: lowered, the arms press on the table
 
 
+def _found_by(monkeypatch: pytest.MonkeyPatch, name: str) -> list[bool]:
+    """Spy on ``stacking_dynamic``'s search ``name``: whether each call found something."""
+    search = getattr(sd, name)
+    found: list[bool] = []
+
+    def spy(*a: Any, **k: Any) -> Any:
+        out = search(*a, **k)
+        found.append(out is not None)
+        return out
+
+    monkeypatch.setattr(sd, name, spy)
+    return found
+
+
 def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned(
         monkeypatch: pytest.MonkeyPatch) -> None:
     # scene 1: from the kinematic plan's arm no straight line leads back to the pre-grasp
     # (a joint limit); another arm for the same grasp pose has one, and the grasp holds
     task, bb, rng, world = _prepared(1)
-    replanned: list[bool] = []
-    regrasp = sd._regrasp
-
-    def spy(*a: Any, **k: Any) -> Any:
-        found = regrasp(*a, **k)
-        replanned.append(found is not None)
-        return found
-
-    monkeypatch.setattr(sd, "_regrasp", spy)
+    replanned = _found_by(monkeypatch, "_regrasp")
     assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
         bb.get("last_failure_detail")
     assert replanned == [True]
@@ -304,15 +310,7 @@ def test_a_grasp_whose_approach_passes_the_other_object_comes_from_another_beari
     # line, nor from another arm); the open fingers came down on it and knocked it over.
     # The grasp turned about the target's axis has a clear line, and the other stays put
     task, bb, rng, world = _prepared(13)
-    turned: list[bool] = []
-    turn = sd._turned
-
-    def spy(*a: Any, **k: Any) -> Any:
-        found = turn(*a, **k)
-        turned.append(found is not None)
-        return found
-
-    monkeypatch.setattr(sd, "_turned", spy)
+    turned = _found_by(monkeypatch, "_turned")
     target = bb["object_positions_world"]
     other = {n: np.array(world.physics.object_pose(n)[:3]) for n in target}
     assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
