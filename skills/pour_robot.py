@@ -63,6 +63,26 @@ def _dynamic() -> tuple[Registry, object]:
     return registry, world
 
 
+def _take_pose(registry: Registry, backend: str, bb: Blackboard, position: Vec3,
+               rotation: Vec3) -> bool:
+    """Run ``backend``'s twins along the path of an FSA that pours: RecogniseObject,
+    MoveToObject, GraspObject, MoveGripperToParam to ``position`` and, when all of those
+    succeed (else False), RotateGripperToParam to ``rotation`` (then True; its outcome is
+    always ``success``: ``last_failure_reason``, cleared before it, and the world say what
+    it did)."""
+    rng = np.random.default_rng(CHECK_SEED)
+    for name in _PATH:
+        if registry.resolve(name, backend)(bb, rng) != "success":
+            return False
+    x, y, z = position
+    if registry.resolve("MoveGripperToParam", backend)(bb, rng, x=x, y=y, z=z) != "success":
+        return False
+    rho, phi, theta = rotation
+    bb["last_failure_reason"] = None
+    registry.resolve("RotateGripperToParam", backend)(bb, rng, rho=rho, phi=phi, theta=theta)
+    return True
+
+
 @functools.lru_cache(maxsize=1 << 14)
 def physics_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: Vec3) -> bool:
     """Whether the PR2 simulated in MuJoCo (the ``dynamic`` twins,
@@ -74,16 +94,7 @@ def physics_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: V
     registry, world = _dynamic()
     bb = _start_board(start)
     pour_water_dynamic.start_episode(world, bb)  # type: ignore[arg-type]
-    rng = np.random.default_rng(CHECK_SEED)
-    for name in _PATH:
-        if registry.resolve(name, "dynamic")(bb, rng) != "success":
-            return False
-    x, y, z = position
-    if registry.resolve("MoveGripperToParam", "dynamic")(bb, rng, x=x, y=y, z=z) != "success":
-        return False
-    rho, phi, theta = rotation
-    registry.resolve("RotateGripperToParam", "dynamic")(bb, rng, rho=rho, phi=phi, theta=theta)
-    return bool(bb["water"] == "glass")
+    return _take_pose(registry, "dynamic", bb, position, rotation) and bb["water"] == "glass"
 
 
 @functools.lru_cache(maxsize=1 << 16)
@@ -92,20 +103,8 @@ def pr2_can_pour(start: tuple[Vec3, Vec3, Vec3], position: Vec3, rotation: Vec3)
     gripper's home, all in world [m]), grasps the jug, brings the spout to ``position`` and
     rotates the gripper to ``rotation`` (roll, pitch, yaw [rad]) with its kinematic skills."""
     bb = _start_board(start)
-    rng = np.random.default_rng(CHECK_SEED)
-    registry = _registry()
-    for name in _PATH:
-        if registry.resolve(name, "kinematic")(bb, rng) != "success":
-            return False
-    x, y, z = position
-    if registry.resolve("MoveGripperToParam", "kinematic")(bb, rng, x=x, y=y, z=z) \
-            != "success":
-        return False
-    rho, phi, theta = rotation
-    bb["last_failure_reason"] = None
-    registry.resolve("RotateGripperToParam", "kinematic")(bb, rng, rho=rho, phi=phi,
-                                                          theta=theta)
-    return bb.get("last_failure_reason") is None and \
+    return _take_pose(_registry(), "kinematic", bb, position, rotation) and \
+        bb.get("last_failure_reason") is None and \
         tuple(bb["gripper_rotation"]) == tuple(rotation)
 
 
