@@ -133,22 +133,22 @@ def held_jug_hits_glass(grasp_world: Sequence[float], rotation: Sequence[float],
     glass (``None``): nothing to hit."""
     if glass_world is None:
         return False
+    # the turned box's bounds in closed form (this runs at every move of the held jug, on
+    # the abstract skills' hot path): centre = grasp + R (0, 0, -G), half extent along
+    # world axis i = sum over j of |R_ij| h_j; the same bounds as its eight corners give
     r = _rpy_matrix(rotation)
-    hx, hy, hz = JUG_HALF_EXTENTS_M
-    low = [math.inf] * 3
-    high = [-math.inf] * 3
-    for sx in (-1.0, 1.0):
-        for sy in (-1.0, 1.0):
-            for sz in (-1.0, 1.0):
-                local = (sx * hx, sy * hy, sz * hz - JUG_GRASP_ABOVE_CENTRE_M)
-                for i in range(3):
-                    v = grasp_world[i] + sum(r[i][j] * local[j] for j in range(3))
-                    low[i], high[i] = min(low[i], v), max(high[i], v)
-    gx, gy, gz = GLASS_HALF_EXTENTS_M
-    glass_low = (glass_world[0] - gx, glass_world[1] - gy, glass_world[2] - 2 * gz)
-    glass_high = (glass_world[0] + gx, glass_world[1] + gy, glass_world[2])
-    return all(min(high[i], glass_high[i]) - max(low[i], glass_low[i]) > JUG_GLASS_TOLERANCE_M
-               for i in range(3))
+    h = JUG_HALF_EXTENTS_M
+    g = GLASS_HALF_EXTENTS_M
+    glass_low = (glass_world[0] - g[0], glass_world[1] - g[1], glass_world[2] - 2 * g[2])
+    glass_high = (glass_world[0] + g[0], glass_world[1] + g[1], glass_world[2])
+    for i in (2, 0, 1):  # height first: a jug carried above the rim is decided at once
+        row = r[i]
+        centre = grasp_world[i] - row[2] * JUG_GRASP_ABOVE_CENTRE_M
+        extent = abs(row[0]) * h[0] + abs(row[1]) * h[1] + abs(row[2]) * h[2]
+        if min(centre + extent, glass_high[i]) - max(centre - extent, glass_low[i]) \
+                <= JUG_GLASS_TOLERANCE_M:
+            return False
+    return True
 
 
 def pour_point(glass_world: Sequence[float]) -> tuple[float, float, float]:
