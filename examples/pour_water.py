@@ -34,8 +34,8 @@ Settings (``make_task(**settings)``, ``--set name=value`` on the command line):
   :mod:`skillcompose.skills.pour_robot`), so that what evolution finds on ``sim`` pours on
   the robot too. ``physics``: only from a pose from which the PR2 in MuJoCo pours the
   water into the glass (the dynamic twins are asked, about 3 s of CPU per distinct pose).
-  ``free``: the abstract rule alone, any tilt in the band over the glass (no robot model;
-  about half of those rotations are out of the PR2's reach there).
+  ``free``: the abstract rule alone (no robot model; about half of the rotations that
+  pour are out of the PR2's reach there).
 - ``trials`` (default 1): runs averaged per evaluation of an FSA.
 - ``step_limit`` (default 20, the paper's): more steps than this end a run in ``timeout``.
 
@@ -47,20 +47,21 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   fixed world has "one set of values" that solves it. ``setup`` draws nothing from the
   run's generator: every random draw of a run belongs to the skills.
 - "Only one set of values" is made exact by tolerances (see
-  :mod:`skillcompose.skills.pour_water`): the spout within 4 cm of the rim's centre
-  horizontally and at most 15 cm above it, the jug tilted 60°–120° from upright; the yaw θ
-  does not pour a jug and is free. The jug is a body that cannot enter the glass, so an
-  upright jug's spout stays at least 6.4 cm above the rim. The position window is about
-  0.1 % of the workspace, which is what makes the search hard; the tilt band is about two
-  thirds of the (ρ, φ) square, and with ``reach=pr2`` about half of it is out of the arm's
-  reach over the glass: a pour needs a tilt the robot can take, not one exact angle.
+  :mod:`skillcompose.skills.pour_water`, measured against MuJoCo by
+  ``benchmarks/pour_rule.py``): the water leaves when the jug tips past level, over the
+  lowest point of its mouth, and lands in the glass when that point stays within 2 cm of
+  the rim's centre horizontally and at most 12 cm above it while the jug tips up to 120°.
+  All three angles matter: the yaw θ decides where the mouth points, so the spout must sit
+  a few centimetres from the centre on the side away from it. The jug is a body that
+  cannot enter the glass, so an upright jug's spout stays at least 6.4 cm above the rim.
+  With ``reach=pr2`` a pour also needs a rotation the arm can take there.
 - Equation (1) is applied in its order of cases: 0 for ``success``; 20 when the jug is not
   in the gripper at the end; 2·d(jug, glass) on ``timeout``; d(jug, glass) otherwise, with d
   the Euclidean distance [m] between the jug's spout and the glass's pouring point: 6.4 cm
   above its rim's centre, where the upright jug's bottom is level with the rim
   (:func:`~skillcompose.skills.pour_geometry.pour_point`). The jug cannot go lower over the
-  glass, so the closest point is one it pours from, and a jug held beside the glass at
-  rim height is farther from it than any point of the pouring window.
+  glass, and the places a tipped jug pours from lie a few centimetres around that point,
+  so a jug held beside the glass at rim height is farther from it than any of them.
 - As in the paper, only CheckSuccess ends a run: the task sets ``terminal_skills``, so
   evolution routes CheckSuccess's outcomes to the terminals and every other outcome to a
   state. A hand-edited FSA may still route any outcome to a terminal; one that ends in

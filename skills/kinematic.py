@@ -13,10 +13,10 @@ or, task-free, ``skillcompose run FILE --skills skillcompose.skills.kinematic --
 
 Instead of a coin flip with ``p_fail``, a kinematic skill fails for a kinematic reason: IK
 finds no configuration (``unreachable``), only outside the joint limits (``joint_limits``),
-or every configuration hits the table (``collision``); it writes the reason to
-``last_failure_reason`` (and words to ``last_failure_detail``) and moves nothing. On success
-it writes the joint angles, the torso height, the tool poses and what each gripper holds,
-beside the abstract world keys the twin writes. Keys, frames and defaults:
+or every configuration hits the table or, in the pour world, the glass (``collision``); it
+writes the reason to ``last_failure_reason`` (and words to ``last_failure_detail``) and
+moves nothing. On success it writes the joint angles, the torso height, the tool poses and
+what each gripper holds, beside the abstract world keys the twin writes. Keys, frames and defaults:
 :mod:`skillcompose.skills.kinematic_world`.
 
 Twins of the pour-water skills (section 4.1, :mod:`skillcompose.skills.pour_water`):
@@ -106,8 +106,11 @@ from skillcompose.skills.pour_geometry import (
     Pitch,
     Roll,
     Yaw,
+    as_matrix3,
     glass_at,
     held_jug_hits_glass,
+    held_jug_turns_into_glass,
+    rpy_matrix,
 )
 from skillcompose.skills.stacking_world import StackDX, StackDY, StackDZ, Which, landing_z
 
@@ -309,9 +312,11 @@ def rotate_gripper_to_param(
 ) -> Literal["success"]:
     """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad] by IK.
 
-    A held jug tilted 60°–120° over the glass pours. The abstract twin has only ``success``:
-    when the rotation is impossible the gripper stays, ``last_failure_reason`` says why, and
-    the outcome is still ``success``.
+    A held jug pours as the abstract twin's rule says (the turn about the grasp point, the
+    lip over the glass; :mod:`skillcompose.skills.pour_water`). The abstract twin has only
+    ``success``: when the rotation is impossible, or would turn the held jug into the glass
+    on the way, the gripper stays, ``last_failure_reason`` says why, and the outcome is
+    still ``success``.
     """
     state = read_state(bb)
     robot_to_world = transform_robot_to_world(state.base_pose_world)
@@ -321,8 +326,9 @@ def rotate_gripper_to_param(
         arm = arms_for(state, gripper)[0]
     tool = robot_to_world * world.transform_tool_to_robot(
         arm, state.torso_height_m, state.q_arm_rad[arm])
-    if _holding_arm(state, "jug") and held_jug_hits_glass(tool.translation, (rho, phi, theta),
-                                                          glass_at(bb)):
+    if _holding_arm(state, "jug") and held_jug_turns_into_glass(
+            tool.translation, as_matrix3(tool.rotation), rpy_matrix((rho, phi, theta)),
+            glass_at(bb)):
         fail(bb, "collision", "RotateGripperToParam (gripper left as it was): the held jug "
              "would turn into the glass")
         return "success"
@@ -389,8 +395,8 @@ def reachable(
 
     The grasp is horizontal, pointing along the bearing from the base (the grasp of
     :mod:`skillcompose.robots.reachability`), the torso stays at its height, collisions with the
-    table
-    count. ``yes`` when IK finds a collision-free configuration; ``no`` writes the reason.
+    table (and, unless it is the object, the pour world's glass) count. ``yes`` when IK finds
+    a collision-free configuration; ``no`` writes the reason.
     """
     position = object_position(bb, object)
     if position is None:
@@ -398,7 +404,8 @@ def reachable(
         return "no"
     state = read_state(bb)
     target = horizontal_grasp_world(state.base_pose_world, position)
-    answer = reach(world, state, arm, target, scene_world(bb), rng, move_torso=False)
+    scene = scene_world(bb, glass=object != "glass")  # the glass is the goal, not in the way
+    answer = reach(world, state, arm, target, scene, rng, move_torso=False)
     if answer.state is None:
         fail(bb, answer.reason, f"Reachable: {answer.detail}")
         return "no"

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Annotated
+from typing import Annotated, Any
 
 from skillcompose import Blackboard, Param
 
@@ -19,8 +19,11 @@ __all__ = [
     "GLASS_HALF_EXTENTS_M",
     "JUG_GRASP_ABOVE_CENTRE_M",
     "JUG_HALF_EXTENTS_M",
+    "JUG_MOUTH_RADIUS_M",
+    "JUG_SLIP_M",
     "POUR_HEIGHT_MAX_M",
     "POUR_HEIGHT_MIN_M",
+    "POUR_MOUTH_ABOVE_GRASP_M",
     "POUR_POINT_ABOVE_RIM_M",
     "POUR_RADIUS_M",
     "POUR_TILT_MAX_RAD",
@@ -29,32 +32,44 @@ __all__ = [
     "GripperX",
     "GripperY",
     "GripperZ",
+    "Matrix3",
     "Pitch",
     "Roll",
     "Vec3",
     "Yaw",
+    "as_matrix3",
     "distance",
     "glass_at",
     "held_jug_hits_glass",
+    "held_jug_turns_into_glass",
+    "pour_lip",
     "pour_point",
     "pours_into_glass",
+    "rpy_matrix",
     "tilt",
+    "water_after_motion",
 ]
 
 Vec3 = tuple[float, float, float]
+Matrix3 = tuple[Vec3, Vec3, Vec3]
 
 APPROACH_TOLERANCE_M = 0.10
 """GraspObject needs the gripper this close to the jug (the paper's 10 cm)."""
 APPROACH_OFFSET_M = 0.06
 """MoveToObject stops this far in front of the jug (−x of the world), inside the tolerance."""
-POUR_RADIUS_M = 0.04
-"""Horizontal distance from the spout to the rim's centre that still hits the glass."""
+POUR_RADIUS_M = 0.02
+"""Horizontal distance from the point where the water leaves the jug (the lowest point of
+its mouth, :func:`pour_lip`) to the rim's centre that still lands it in the glass: the
+glass's mouth is 3.9 cm across half its width, less the stream's spread (measured in MuJoCo)
+[m]."""
 POUR_HEIGHT_MIN_M = 0.0
-"""The spout must not be below the rim (level with it pours; see the module docstring)."""
-POUR_HEIGHT_MAX_M = 0.15
-"""From higher than this above the rim the water splashes out."""
-POUR_TILT_MIN_RAD = math.pi / 3
-"""A held jug starts pouring at this tilt from upright."""
+"""The water must leave the jug above the rim, not below it [m]."""
+POUR_HEIGHT_MAX_M = 0.12
+"""From higher than this above the rim the stream splashes out [m]."""
+POUR_TILT_MIN_RAD = math.pi / 2
+"""A held jug starts pouring at this tilt from upright: tipped past level, its water (80 g
+in a 7 x 7 x 7.6 cm jug) reaches the lip (in MuJoCo no water left the jug below about
+85°)."""
 POUR_TILT_MAX_RAD = 2 * math.pi / 3
 """Beyond this tilt the water leaves through the whole mouth and misses the glass."""
 JUG_HALF_EXTENTS_M = (0.035, 0.035, 0.038)
@@ -62,6 +77,16 @@ JUG_HALF_EXTENTS_M = (0.035, 0.035, 0.038)
 JUG_GRASP_ABOVE_CENTRE_M = 0.026
 """Its grasp point (``jug_position_world``, held at the tool frame, the jug's axes along the
 tool's) lies this far above its centre: 1.2 cm under the rim [m]."""
+JUG_SLIP_M = 0.016
+"""How far a tipped jug slides in the fingers along its axis, towards its mouth: in MuJoCo,
+where the fingers hold it by friction alone, the jug sits 1.6 to 1.65 cm further out on
+average once tipped 75° to 120° (``benchmarks/pour_rule.py``, docs/results/pour_rule.md)
+[m]."""
+JUG_MOUTH_RADIUS_M = 0.035
+"""The jug's mouth, as a circle: the water leaves over its lowest point [m]."""
+POUR_MOUTH_ABOVE_GRASP_M = JUG_HALF_EXTENTS_M[2] - JUG_GRASP_ABOVE_CENTRE_M + JUG_SLIP_M
+"""The centre of a tipped jug's mouth, this far from the grasp point along the jug's axis
+(1.2 cm under the rim, plus :data:`JUG_SLIP_M`) [m]."""
 GLASS_HALF_EXTENTS_M = (0.045, 0.045, 0.06)
 """The glass's outside: 9 x 9 x 12 cm, its rim (``glass_position_world``) on top [m]."""
 POUR_POINT_ABOVE_RIM_M = JUG_GRASP_ABOVE_CENTRE_M + JUG_HALF_EXTENTS_M[2]
@@ -98,17 +123,124 @@ def tilt(rotation: Sequence[float]) -> float:
     return math.acos(-1.0 if c < -1.0 else 1.0 if c > 1.0 else c)
 
 
-def pours_into_glass(spout_world: Sequence[float], glass_world: Sequence[float]) -> bool:
-    """True when water leaving a spout at ``spout_world`` lands in the glass at
-    ``glass_world`` (both in the world frame [m])."""
-    dx = spout_world[0] - glass_world[0]
-    dy = spout_world[1] - glass_world[1]
-    dz = spout_world[2] - glass_world[2]
+def pours_into_glass(lip_world: Sequence[float], glass_world: Sequence[float]) -> bool:
+    """True when water leaving the jug at ``lip_world`` (:func:`pour_lip`) lands in the
+    glass whose rim's centre is ``glass_world`` (both in the world frame [m])."""
+    dx = lip_world[0] - glass_world[0]
+    dy = lip_world[1] - glass_world[1]
+    dz = lip_world[2] - glass_world[2]
     return dx * dx + dy * dy <= POUR_RADIUS_M**2 and POUR_HEIGHT_MIN_M <= dz <= POUR_HEIGHT_MAX_M
 
 
-def _rpy_matrix(rotation: Sequence[float]) -> tuple[tuple[float, float, float], ...]:
-    """Roll, pitch, yaw about the fixed x, y, z axes: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
+def pour_lip(grasp_world: Sequence[float], axis: Sequence[float]) -> Vec3:
+    """Where the water leaves a held jug whose grasp point is ``grasp_world`` and whose axis
+    (its upright direction, the tool's z) is the unit vector ``axis``, both in the world
+    frame: the lowest point of its mouth, a circle of :data:`JUG_MOUTH_RADIUS_M` around a
+    centre :data:`POUR_MOUTH_ABOVE_GRASP_M` along the axis [m]."""
+    c = axis[2]  # cos(tilt)
+    s = math.sqrt(max(0.0, 1.0 - c * c))
+    m = POUR_MOUTH_ABOVE_GRASP_M
+    if s < 1e-9:  # upright or upside down: no lowest point; the mouth's centre
+        return (grasp_world[0] + m * axis[0], grasp_world[1] + m * axis[1],
+                grasp_world[2] + m * axis[2])
+    k = JUG_MOUTH_RADIUS_M / s  # downhill in the mouth's plane: (-e_z + c axis) / s
+    return (grasp_world[0] + (m + k * c) * axis[0],
+            grasp_world[1] + (m + k * c) * axis[1],
+            grasp_world[2] + (m + k * c) * axis[2] - k)
+
+
+_PATH_STEP_RAD = math.radians(3.0)
+"""The held jug's path is judged at rotations this far apart, at most."""
+
+def _axis_angle(r: Matrix3) -> tuple[Vec3, float]:
+    """The unit axis and angle [rad] of rotation matrix ``r``, by way of its quaternion
+    (Shepperd's method: exact also near half a turn)."""
+    t = r[0][0] + r[1][1] + r[2][2]
+    if t > max(r[0][0], r[1][1], r[2][2]):
+        w = math.sqrt(1.0 + t) / 2
+        v = ((r[2][1] - r[1][2]) / (4 * w), (r[0][2] - r[2][0]) / (4 * w),
+             (r[1][0] - r[0][1]) / (4 * w))
+    elif r[0][0] >= r[1][1] and r[0][0] >= r[2][2]:
+        x = math.sqrt(max(0.0, 1.0 + r[0][0] - r[1][1] - r[2][2])) / 2
+        w = (r[2][1] - r[1][2]) / (4 * x)
+        v = (x, (r[0][1] + r[1][0]) / (4 * x), (r[0][2] + r[2][0]) / (4 * x))
+    elif r[1][1] >= r[2][2]:
+        y = math.sqrt(max(0.0, 1.0 + r[1][1] - r[0][0] - r[2][2])) / 2
+        w = (r[0][2] - r[2][0]) / (4 * y)
+        v = ((r[0][1] + r[1][0]) / (4 * y), y, (r[1][2] + r[2][1]) / (4 * y))
+    else:
+        z = math.sqrt(max(0.0, 1.0 + r[2][2] - r[0][0] - r[1][1])) / 2
+        w = (r[1][0] - r[0][1]) / (4 * z)
+        v = ((r[0][2] + r[2][0]) / (4 * z), (r[1][2] + r[2][1]) / (4 * z), z)
+    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if n < 1e-12:
+        return (0.0, 0.0, 1.0), 0.0
+    if w < 0.0:  # the shorter way round
+        v, w = (-v[0], -v[1], -v[2]), -w
+    return (v[0] / n, v[1] / n, v[2] / n), 2.0 * math.atan2(n, w)
+
+
+def water_after_motion(grasp_from: Sequence[float], rotation_from: Matrix3,
+                       grasp_to: Sequence[float], rotation_to: Matrix3,
+                       glass_world: Sequence[float] | None) -> str | None:
+    """Where a held jug's water goes as the jug moves from one pose to another: its grasp
+    point along the straight line, its rotation (world-frame matrices, the jug's axes along
+    the tool's) along the shortest turn between the two, as the robot turns it. ``None``
+    when no pose of the path tilts the jug to :data:`POUR_TILT_MIN_RAD`: the water stays in.
+    Otherwise the water leaves at every pose tilted that far, over the lip (:func:`pour_lip`),
+    and ends ``"glass"`` when every such pose is tilted at most :data:`POUR_TILT_MAX_RAD` with
+    its lip over the glass (:func:`pours_into_glass`), else ``"spilled"``.
+
+    The water leaves as soon as the tilt passes level, wherever the lip is then: a rotation
+    that tips the jug past level away from the glass spills, even if it ends over it (as in
+    MuJoCo, where the arm turns the jug through intermediate rotations)."""
+    cos_min = math.cos(POUR_TILT_MIN_RAD) + 1e-12
+    z0 = (rotation_from[0][2], rotation_from[1][2], rotation_from[2][2])
+    z1 = (rotation_to[0][2], rotation_to[1][2], rotation_to[2][2])
+    # the turn from the first rotation to the second, in the world frame: d = to . from^T
+    d = tuple(tuple(sum(rotation_to[i][k] * rotation_from[j][k] for k in range(3))
+                    for j in range(3)) for i in range(3))
+    u, angle = _axis_angle(d)  # type: ignore[arg-type]
+    # the jug's axis on the way: z(s) = z0 cos(sa) + (u x z0) sin(sa) + u (u.z0)(1 - cos(sa)),
+    # its height a + b cos(sa) + c sin(sa); a quick answer when it never comes down to level
+    uz = u[0] * z0[0] + u[1] * z0[1] + u[2] * z0[2]
+    cross = (u[1] * z0[2] - u[2] * z0[1], u[2] * z0[0] - u[0] * z0[2],
+             u[0] * z0[1] - u[1] * z0[0])
+    a, b, c = u[2] * uz, z0[2] - u[2] * uz, cross[2]
+    lowest = min(z0[2], z1[2])
+    phase = math.atan2(c, b)  # a + r cos(sa - phase): lowest at sa = phase + pi
+    for turn in (phase + math.pi, phase - math.pi):
+        if 0.0 < turn < angle:
+            lowest = min(lowest, a - math.hypot(b, c))
+    if lowest > cos_min:
+        return None
+    steps = max(1, math.ceil(angle / _PATH_STEP_RAD),
+                math.ceil(math.dist(grasp_from, grasp_to) / (POUR_RADIUS_M / 4)))
+    poured = False
+    for i in range(steps + 1):
+        s = i / steps
+        ca, sa = math.cos(s * angle), math.sin(s * angle)
+        axis = tuple(z0[k] * ca + cross[k] * sa + u[k] * uz * (1.0 - ca) for k in range(3))
+        if axis[2] > cos_min:
+            continue
+        poured = True
+        grasp = tuple(grasp_from[k] + s * (grasp_to[k] - grasp_from[k]) for k in range(3))
+        if glass_world is None or axis[2] < math.cos(POUR_TILT_MAX_RAD) or \
+                not pours_into_glass(pour_lip(grasp, axis), glass_world):
+            return "spilled"
+    return "glass" if poured else None
+
+
+def as_matrix3(rows: Sequence[Sequence[float]] | Any) -> Matrix3:
+    """A 3 x 3 rotation (nested sequences or an array) as a :data:`Matrix3` of floats."""
+    r0, r1, r2 = rows
+    return ((float(r0[0]), float(r0[1]), float(r0[2])), (float(r1[0]), float(r1[1]),
+            float(r1[2])), (float(r2[0]), float(r2[1]), float(r2[2])))
+
+
+def rpy_matrix(rotation: Sequence[float]) -> Matrix3:
+    """The rotation matrix of roll, pitch, yaw ``rotation`` [rad] about the fixed x, y, z
+    axes: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
     cr, sr = math.cos(rotation[0]), math.sin(rotation[0])
     cp, sp = math.cos(rotation[1]), math.sin(rotation[1])
     cy, sy = math.cos(rotation[2]), math.sin(rotation[2])
@@ -131,12 +263,57 @@ def held_jug_hits_glass(grasp_world: Sequence[float], rotation: Sequence[float],
     axis-aligned bounds. The spout of the abstract skills is the grasp point, so a pour with
     the spout less than the jug's own height above the rim puts the jug into the glass. No
     glass (``None``): nothing to hit."""
+    return glass_world is not None and _hits(grasp_world, rpy_matrix(rotation), glass_world)
+
+
+def held_jug_turns_into_glass(grasp_world: Sequence[float], rotation_from: Matrix3,
+                              rotation_to: Matrix3, glass_world: Sequence[float] | None
+                              ) -> bool:
+    """Whether the held jug, turned about its grasp point ``grasp_world`` from one rotation
+    to another (world-frame matrices) along the shortest turn, as the robot turns it, would
+    reach into the glass at some pose on the way or at its end (:func:`held_jug_hits_glass`
+    at every :data:`_PATH_STEP_RAD`)."""
     if glass_world is None:
         return False
+    g = GLASS_HALF_EXTENTS_M
+    gap = (max(abs(grasp_world[0] - glass_world[0]) - g[0], 0.0),
+           max(abs(grasp_world[1] - glass_world[1]) - g[1], 0.0),
+           max(abs(grasp_world[2] - (glass_world[2] - g[2])) - g[2], 0.0))
+    if gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2 > _JUG_REACH_M**2:
+        return False  # farther from the glass than any point of the jug from its grasp
+    d = tuple(tuple(sum(rotation_to[i][k] * rotation_from[j][k] for k in range(3))
+                    for j in range(3)) for i in range(3))
+    u, angle = _axis_angle(d)  # type: ignore[arg-type]
+    steps = max(1, math.ceil(angle / _PATH_STEP_RAD))
+    for i in range(1, steps + 1):
+        turn = _axis_angle_matrix(u, angle * i / steps)
+        r = tuple(tuple(sum(turn[a][k] * rotation_from[k][b] for k in range(3))
+                        for b in range(3)) for a in range(3))
+        if _hits(grasp_world, r, glass_world):  # type: ignore[arg-type]
+            return True
+    return False
+
+
+def _axis_angle_matrix(u: Vec3, angle: float) -> Matrix3:
+    """The rotation by ``angle`` [rad] about unit axis ``u`` (Rodrigues)."""
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    x, y, z = u
+    return ((c + x * x * t, x * y * t - z * s, x * z * t + y * s),
+            (y * x * t + z * s, c + y * y * t, y * z * t - x * s),
+            (z * x * t - y * s, z * y * t + x * s, c + z * z * t))
+
+
+_JUG_REACH_M = math.sqrt(JUG_HALF_EXTENTS_M[0] ** 2 + JUG_HALF_EXTENTS_M[1] ** 2
+                         + (JUG_GRASP_ABOVE_CENTRE_M + JUG_HALF_EXTENTS_M[2]) ** 2)
+"""How far from its grasp point the held jug reaches: its farthest corner [m]."""
+
+
+def _hits(grasp_world: Sequence[float], r: Matrix3, glass_world: Sequence[float]) -> bool:
+    """:func:`held_jug_hits_glass` for the rotation matrix ``r``."""
     # the turned box's bounds in closed form (this runs at every move of the held jug, on
     # the abstract skills' hot path): centre = grasp + R (0, 0, -G), half extent along
     # world axis i = sum over j of |R_ij| h_j; the same bounds as its eight corners give
-    r = _rpy_matrix(rotation)
     h = JUG_HALF_EXTENTS_M
     g = GLASS_HALF_EXTENTS_M
     glass_low = (glass_world[0] - g[0], glass_world[1] - g[1], glass_world[2] - 2 * g[2])

@@ -30,29 +30,34 @@ key                          meaning (written by the task's ``setup`` unless sai
 Positions and rotations are plain ``(x, y, z)`` float tuples: these skills run millions of
 times during evolution.
 
-Pouring. The held jug pours when it is tilted at least :data:`POUR_TILT_MIN_RAD` (60°) from
-upright and at most :data:`POUR_TILT_MAX_RAD` (120°): below that the water stays in, above
-it the jug is nearly upside down and the water leaves through the whole mouth, wider than
-the glass. The water lands in the glass when the spout is over it: at most
-:data:`POUR_RADIUS_M` (4 cm, the glass's mouth) from the rim's centre horizontally, and
-between :data:`POUR_HEIGHT_MIN_M` (0 cm: the spout level with the rim, not below it) and
-:data:`POUR_HEIGHT_MAX_M` (15 cm, higher splashes) above it; the jug's own body keeps it
-higher still (see "The jug is a body" below). Water leaving the jug anywhere else, or
-upside down, is spilled. The tilt of rotation (ρ, φ, θ) — roll about x, pitch about y, yaw
-about z, applied in that order about the fixed axes — is ``arccos(cos ρ · cos φ)``; the yaw
-θ turns the jug about the vertical and never pours it. So "the one correct set of values" of
-the paper is the box of positions above times the band of tilts, with θ free. Water moves
-whenever the held jug's pose changes: after a rotation, a move and a grasp.
+Pouring. The water leaves the held jug as soon as the jug tips past level
+(:data:`POUR_TILT_MIN_RAD`, 90°: with less tilt it stays in), over the lowest point of the
+jug's mouth, its *lip* (:func:`~skillcompose.skills.pour_geometry.pour_lip`: the mouth is a
+circle of 3.5 cm around a centre 2.8 cm along the jug's axis from the grasp point, 1.2 cm
+under the rim plus 1.6 cm that a tipped jug slides in the fingers). It lands in the glass
+when the lip is over the glass's mouth: at most :data:`POUR_RADIUS_M` (2 cm) from the rim's
+centre horizontally, and between :data:`POUR_HEIGHT_MIN_M` (level with the rim) and
+:data:`POUR_HEIGHT_MAX_M` (12 cm, higher splashes) above it; tilted more than
+:data:`POUR_TILT_MAX_RAD` (120°) the water leaves through the whole mouth and spills.
+The jug turns about its grasp point along the shortest turn from its rotation to the new
+one, as the robot turns it, and the water goes as every pose on the way says
+(:func:`~skillcompose.skills.pour_geometry.water_after_motion`): a rotation that tips the
+jug past level with its lip away from the glass spills, wherever it ends. So the yaw θ
+matters: it decides where the lip points. A tilted gripper that grasps the jug tips it at
+once, where it stands. These numbers were measured in MuJoCo, where the rule is checked
+against the physics by ``benchmarks/pour_rule.py`` (``docs/results/pour_rule.md``). The
+tilt of rotation (ρ, φ, θ), roll about x, pitch about y, yaw about z, applied in that order
+about the fixed axes, is ``arccos(cos ρ · cos φ)``.
 
 The jug is a body. The held jug hangs below its spout (the grasp point: 7.6 cm tall, held
 1.2 cm under its rim; :data:`~skillcompose.skills.pour_geometry.JUG_HALF_EXTENTS_M`), and the
 glass is a 9 x 9 x 12 cm cup under its rim: a move or a rotation that would put the jug into
 the glass (:func:`~skillcompose.skills.pour_geometry.held_jug_hits_glass`) does not happen
 (MoveGripperToParam fails, RotateGripperToParam leaves the gripper as it was), on every
-backend. So an upright jug pours from 6.4 cm above the rim at the lowest; the task's
-fitness measures the distance to that point
-(:func:`~skillcompose.skills.pour_geometry.pour_point`), so that it leads evolution to a
-place that pours.
+backend. So an upright jug's spout comes no lower than 6.4 cm above the rim's centre; the
+task's fitness measures the distance to that point
+(:func:`~skillcompose.skills.pour_geometry.pour_point`), a few centimetres from the places
+a tipped jug pours from, so that it leads evolution there.
 
 The robot. With ``robot_check`` set (the task's default, ``reach=pr2``), a pose that would
 pour into the glass is taken only if the PR2's arm can take it:
@@ -93,8 +98,11 @@ from skillcompose.skills.pour_geometry import (
     Yaw,
     distance,
     held_jug_hits_glass,
+    held_jug_turns_into_glass,
     pours_into_glass,
+    rpy_matrix,
     tilt,
+    water_after_motion,
 )
 
 if TYPE_CHECKING:
@@ -147,15 +155,21 @@ def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
     return rng.random() < bb["p_fail"]
 
 
+def _water_after(bb: Blackboard, position: Vec3, rotation: Vec3) -> str | None:
+    """Where the held jug's water would go if the jug moved from its pose now to
+    ``position`` and ``rotation`` (:func:`~skillcompose.skills.pour_geometry.water_after_motion`):
+    ``None`` when it stays in the jug, or when there is no held jug with water in it."""
+    if not bb["holding_jug"] or bb["water"] != "jug":
+        return None
+    return water_after_motion(bb["jug_position_world"], rpy_matrix(bb["gripper_rotation"]),
+                              position, rpy_matrix(rotation), bb["glass_position_world"])
+
+
 def _robot_can_take(bb: Blackboard, position: Vec3, rotation: Vec3) -> bool:
-    """Whether the held jug may take this pose: always, unless it would pour into the
-    glass and the robot check (``robot_check``) says the PR2's arm cannot take it."""
+    """Whether the held jug may move to this pose: always, unless the move would pour into
+    the glass and the robot check (``robot_check``) says the PR2's arm cannot take it."""
     check = bb.get("robot_check")
-    if check is None or not bb["holding_jug"] or bb["water"] != "jug":
-        return True
-    t = tilt(rotation)
-    if not POUR_TILT_MIN_RAD <= t <= POUR_TILT_MAX_RAD or not pours_into_glass(
-            position, bb["glass_position_world"]):
+    if check is None or _water_after(bb, position, rotation) != "glass":
         return True
     # imported here: the PR2 model loads only when a pose would pour
     from skillcompose.skills.pour_robot import can_pour
@@ -167,21 +181,6 @@ def _robot_can_take(bb: Blackboard, position: Vec3, rotation: Vec3) -> bool:
 
 def _vec(v: Sequence[float]) -> Vec3:
     return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def _move_water(bb: Blackboard) -> None:
-    """Pour or spill the held jug's water if its pose now makes it leave the jug."""
-    if not bb["holding_jug"] or bb["water"] != "jug":
-        return
-    t = tilt(bb["gripper_rotation"])
-    if t < POUR_TILT_MIN_RAD:
-        return
-    if t <= POUR_TILT_MAX_RAD and pours_into_glass(
-        bb["jug_position_world"], bb["glass_position_world"]
-    ):
-        bb["water"] = "glass"
-    else:
-        bb["water"] = "spilled"
 
 
 @skill(
@@ -226,7 +225,7 @@ def move_to_object(
 @skill(
     reads=(
         "jug_location_world", "gripper_position_world", "gripper_rotation", "p_fail",
-        "glass_position_world",
+        "glass_position_world", "water",
     ),
     writes=("holding_jug", "jug_position_world", "water"),
     backend="sim",
@@ -247,12 +246,18 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
         return "failure"
     bb["holding_jug"] = True
     bb["jug_position_world"] = gripper
-    _move_water(bb)
+    rotation = bb["gripper_rotation"]
+    if bb["water"] == "jug":  # a tilted gripper tilts the jug at once, where it is
+        water = water_after_motion(gripper, rpy_matrix(rotation), gripper,
+                                   rpy_matrix(rotation), bb["glass_position_world"])
+        if water is not None:
+            bb["water"] = water
     return "success"
 
 
 @skill(
-    reads=("p_fail", "holding_jug", "gripper_rotation", "glass_position_world", "robot_check"),
+    reads=("p_fail", "holding_jug", "gripper_rotation", "glass_position_world", "robot_check",
+           "jug_position_world", "water"),
     writes=("gripper_position_world", "jug_position_world", "water"),
     backend="sim",
 )
@@ -278,15 +283,18 @@ def move_gripper_to_param(
         return "failure"
     if not _robot_can_take(bb, target, bb["gripper_rotation"]):
         return "failure"
+    water = _water_after(bb, target, bb["gripper_rotation"])
     bb["gripper_position_world"] = target
     if bb["holding_jug"]:
         bb["jug_position_world"] = target
-        _move_water(bb)
+    if water is not None:
+        bb["water"] = water
     return "success"
 
 
 @skill(
-    reads=("holding_jug", "jug_position_world", "glass_position_world", "robot_check"),
+    reads=("holding_jug", "jug_position_world", "glass_position_world", "robot_check",
+           "gripper_rotation", "water"),
     writes=("gripper_rotation", "water"),
     backend="sim",
 )
@@ -300,17 +308,21 @@ def rotate_gripper_to_param(
 ) -> Literal["success"]:
     """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad].
 
-    A held jug tilted 60°–120° with its spout over the glass pours into it; tilted that far
-    anywhere else, or further, it spills. Always ``success``; a rotation that would pour
-    but that the PR2's arm cannot take leaves the gripper as it was (see the module).
+    The held jug turns with it, about its grasp point, along the shortest turn: its water
+    leaves as soon as it tips past level, into the glass when its lip is over it (see the
+    module). Always ``success``; a rotation that would pour but that the PR2's arm cannot
+    take leaves the gripper as it was.
     """
-    if bb["holding_jug"] and held_jug_hits_glass(
-            bb["jug_position_world"], (rho, phi, theta), bb["glass_position_world"]):
+    if bb["holding_jug"] and held_jug_turns_into_glass(
+            bb["jug_position_world"], rpy_matrix(bb["gripper_rotation"]),
+            rpy_matrix((rho, phi, theta)), bb["glass_position_world"]):
         return "success"  # the jug would turn into the glass: the gripper stays
     if not _robot_can_take(bb, bb["jug_position_world"], (rho, phi, theta)):
         return "success"
+    water = _water_after(bb, bb["jug_position_world"], (rho, phi, theta))
     bb["gripper_rotation"] = (rho, phi, theta)
-    _move_water(bb)
+    if water is not None:
+        bb["water"] = water
     return "success"
 
 

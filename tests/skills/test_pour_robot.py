@@ -10,18 +10,19 @@ import pytest
 
 from examples.pour_water import GLASS_RIM_WORLD, GRIPPER_HOME_WORLD, JUG_SPOUT_WORLD
 from skillcompose import FSA, load_fsa
+from skillcompose.skills.pour_geometry import held_jug_hits_glass, rpy_matrix, water_after_motion
 from skillcompose.skills.pour_robot import pr2_can_pour
-from skillcompose.skills.pour_water import tilt
 from skillcompose.task import Task, TaskError, load_task
 
 pytestmark = pytest.mark.kinematics
 
 START = (JUG_SPOUT_WORLD, GLASS_RIM_WORLD, GRIPPER_HOME_WORLD)
-OVER_GLASS = (0.60, 0.20, 0.95)
+OVER_GLASS = (0.58, 0.20, 0.95)  # the reference's spout when it pours
 REFERENCE = load_fsa("examples/pour_water_reference.fsa.yaml")
-# a rotation in the pouring band that the PR2's arm cannot take over the glass (an FSA
-# evolved with the abstract rule alone pours with it on sim and never on the robot)
-OUT_OF_REACH = (1.5934543210989043, 2.658085410725043, 0.9766250258140978)
+# a rotation that pours into the glass by the abstract rule but that the PR2's arm cannot
+# take there (an FSA evolved with the abstract rule alone pours with it on sim and never on
+# the robot)
+OUT_OF_REACH = (2.3319360529022024, -1.411364414375902, 0.3883619165708305)
 
 
 def pouring_with(rotation: tuple[float, float, float]) -> FSA:
@@ -54,16 +55,19 @@ def test_a_rotation_out_of_reach_pours_on_sim_only_with_the_abstract_rule() -> N
 
 
 def test_sim_and_the_pr2_model_agree_on_random_pouring_rotations() -> None:
-    """Rotations drawn in the pouring band over the glass (about half of them out of the
-    arm's reach): the abstract skills pour exactly when the kinematic ones do."""
+    """Rotations drawn among those the abstract rule pours with at the reference's spout
+    (about 40 % of them out of the arm's reach): the abstract skills pour exactly when the
+    kinematic ones do."""
     sim = load_task("examples.pour_water", p_fail=0.0)
     kinematic = load_task("examples.pour_water", backend="kinematic")
     rng = np.random.default_rng(7)
+    upright = rpy_matrix((0.0, 0.0, 0.0))
     answers: list[tuple[bool, bool]] = []
     while len(answers) < 40:
         r = (float(rng.uniform(-math.pi, math.pi)), float(rng.uniform(-math.pi, math.pi)),
              float(rng.uniform(-math.pi, math.pi)))
-        if not math.pi / 3 <= tilt(r) <= 2 * math.pi / 3:
+        if held_jug_hits_glass(OVER_GLASS, r, GLASS_RIM_WORLD) or water_after_motion(
+                OVER_GLASS, upright, OVER_GLASS, rpy_matrix(r), GLASS_RIM_WORLD) != "glass":
             continue
         fsa = pouring_with(r)
         answers.append((pours(sim, fsa, len(answers)), pours(kinematic, fsa, len(answers))))
@@ -92,14 +96,14 @@ def test_the_shipped_evolved_fsa_pours_on_the_pr2_model() -> None:
 def test_the_held_jug_cannot_enter_the_glass_on_the_pr2_model_either() -> None:
     """The reference carried 3 cm above the rim (its jug hangs 6.4 cm below the spout): the
     kinematic MoveGripperToParam fails with ``collision``, and the check says no pour."""
-    low = REFERENCE.with_params("MoveOverGlass", x=0.60, y=0.20, z=0.90)
+    low = REFERENCE.with_params("MoveOverGlass", x=0.58, y=0.20, z=0.90)
     kinematic = load_task("examples.pour_water", backend="kinematic")
     trial = next(iter(kinematic.each_trial(kinematic.compile(low), 0, 1)))
     assert trial.result.outcome == "timeout" and trial.blackboard is not None
     assert trial.blackboard["last_failure_reason"] == "collision"
     assert "jug would reach into the glass" in trial.blackboard["last_failure_detail"]
-    assert not pr2_can_pour(START, (0.60, 0.20, 0.90), (0.0, math.pi / 2, 0.0))
-    assert pr2_can_pour(START, (0.60, 0.20, 0.95), (0.0, math.pi / 2, 0.0))
+    assert not pr2_can_pour(START, (0.58, 0.20, 0.90), (0.0, math.pi / 2, 0.0))
+    assert pr2_can_pour(START, (0.58, 0.20, 0.95), (0.0, math.pi / 2, 0.0))
 
 
 @pytest.mark.physics

@@ -158,16 +158,23 @@ def test_move_gripper_to_param_declares_the_workspace() -> None:
         pw.move_gripper_to_param(world(), 0, z=0.5)
 
 
-def over_glass(height: float = 0.08, dx: float = 0.0) -> tuple[float, float, float]:
-    return (GLASS_RIM_WORLD[0] + dx, GLASS_RIM_WORLD[1], GLASS_RIM_WORLD[2] + height)
+def over_glass(height: float = 0.08, dx: float = 0.0, dy: float = 0.0
+               ) -> tuple[float, float, float]:
+    return (GLASS_RIM_WORLD[0] + dx, GLASS_RIM_WORLD[1] + dy, GLASS_RIM_WORLD[2] + height)
+
+
+# tipped level towards +x, the jug's lip lies 2.8 cm beyond its spout (3.5 cm below it):
+# a spout 2 cm short of the glass's centre puts the lip 0.8 cm past it
+SHORT = -0.02
 
 
 def test_rotating_the_held_jug_over_the_glass_pours_it() -> None:
     bb = holding()
-    pw.move_gripper_to_param(bb, 0, x=over_glass()[0], y=over_glass()[1], z=over_glass()[2])
+    g = over_glass(dx=SHORT)
+    pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
     assert bb["water"] == "jug"
     rng = np.random.default_rng(5)
-    assert pw.rotate_gripper_to_param(bb, rng, rho=0.0, phi=math.pi / 2, theta=0.3) == "success"
+    assert pw.rotate_gripper_to_param(bb, rng, rho=0.0, phi=math.pi / 2, theta=0.0) == "success"
     assert bb["water"] == "glass"
     assert pw.check_success(bb, rng) == "success"
 
@@ -175,18 +182,21 @@ def test_rotating_the_held_jug_over_the_glass_pours_it() -> None:
 @pytest.mark.parametrize(
     ("where", "angles", "water"),
     [
-        (over_glass(), (0.0, 0.9, 0.0), "jug"),  # 52° is not enough to pour
-        (over_glass(), (0.0, 0.0, 2.5), "jug"),  # yaw alone never pours
-        (over_glass(), (1.1, 0.0, 0.0), "glass"),  # 63° of roll pours
-        (over_glass(), (-2.0, 0.0, 0.0), "glass"),  # 115°
-        (over_glass(), (math.pi, 0.0, 0.0), "spilled"),  # upside down
-        (over_glass(0.2), (0.0, 1.5, 0.0), "spilled"),  # too high: splashes
-        (over_glass(-0.005), (0.0, 1.5, 0.0), "spilled"),  # below the rim
-        (over_glass(0.0), (0.0, 1.5, 0.0), "spilled"),  # the jug would be in the glass:
-        # it stays where it was, and tilted there it spills
-        (over_glass(0.065), (0.0, 1.5, 0.0), "glass"),  # an upright jug's lowest: it pours
-        (over_glass(0.08, 0.05), (0.0, 1.5, 0.0), "spilled"),  # 5 cm off the centre
-        ((0.5, -0.3, 1.1), (0.0, 1.5, 0.0), "spilled"),  # nowhere near the glass
+        (over_glass(dx=SHORT), (0.0, 0.9, 0.0), "jug"),  # 52° is not enough to pour
+        (over_glass(dx=SHORT), (0.0, 1.5, 0.0), "jug"),  # nor 86°: not yet level
+        (over_glass(dx=SHORT), (0.0, 0.0, 2.5), "jug"),  # yaw alone never pours
+        (over_glass(dx=SHORT), (0.0, 1.6, 0.0), "glass"),  # 92° of pitch, the lip over it
+        (over_glass(dy=-SHORT), (1.6, 0.0, 0.0), "glass"),  # 92° of roll tips towards -y
+        (over_glass(dy=SHORT), (0.0, 1.6, math.pi / 2), "glass"),  # the yaw turns it to +y
+        (over_glass(dx=SHORT), (0.0, 1.6, math.pi), "spilled"),  # ... or away from the glass
+        (over_glass(), (0.0, 1.6, 0.0), "spilled"),  # the spout at the centre: lip 2.8 cm off
+        (over_glass(dx=-0.018), (0.0, 2.0, 0.0), "glass"),  # 115°: the lip swept 1 to -0.7 cm
+        (over_glass(dx=SHORT), (0.0, 2.3, 0.0), "spilled"),  # 132°: out through the mouth
+        (over_glass(0.2, dx=SHORT), (0.0, 1.6, 0.0), "spilled"),  # too high: splashes
+        (over_glass(0.0), (0.0, 1.6, 0.0), "spilled"),  # the jug would be in the glass:
+        # it stays where it was, and tipped there it spills
+        (over_glass(0.08, 0.05), (0.0, 1.6, 0.0), "spilled"),  # 5 cm off the centre
+        ((0.5, -0.3, 1.1), (0.0, 1.6, 0.0), "spilled"),  # nowhere near the glass
     ],
 )
 def test_pouring_tolerances(
@@ -199,41 +209,75 @@ def test_pouring_tolerances(
     assert pw.check_success(bb, 0) == ("success" if water == "glass" else "failure")
 
 
+def test_the_water_leaves_as_soon_as_the_jug_tips_past_level() -> None:
+    """Tipped past level with its lip off the glass, the jug spills; tipped part way, it
+    keeps the water, and pours when tipped on past level over the glass."""
+    bb = holding()
+    g = over_glass(dx=SHORT)
+    pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
+    assert pw.rotate_gripper_to_param(bb, 0, rho=1.6, phi=0.0, theta=0.0) == "success"
+    assert bb["water"] == "spilled"  # tipped towards -y: the lip 2.8 cm off to the side
+    bb = holding()
+    pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=1.2, theta=0.0)
+    assert bb["water"] == "jug"  # 69°: still in
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=1.6, theta=0.0)
+    assert bb["water"] == "glass"  # on to 92°, over the glass
+
+
+def test_the_rule_follows_the_shortest_turn() -> None:
+    """The path is the shortest turn between the two rotations, whatever angles name them:
+    roll pi, pitch pi - 1.6, yaw pi is the rotation of pitch 1.6 alone, and pours alike."""
+    bb = holding()
+    g = over_glass(dx=SHORT)
+    pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
+    pw.rotate_gripper_to_param(bb, 0, rho=math.pi, phi=math.pi - 1.6, theta=math.pi)
+    assert bb["water"] == "glass"
+
+
 def test_the_held_jug_cannot_enter_the_glass() -> None:
     """The jug hangs 6.4 cm below its spout: a move that would put it into the glass fails
-    and moves nothing; a rotation that would turn it into the glass leaves the gripper."""
+    and moves nothing; a rotation that would turn it into the glass, at its end or on the
+    way, leaves the gripper."""
     bb = holding()
     before = bb["gripper_position_world"]
-    g = over_glass(0.03)
+    g = over_glass(0.03, dx=SHORT)
     assert pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2]) == "failure"
     assert bb["gripper_position_world"] == before and bb["water"] == "jug"
-    g = over_glass(0.065)
+    g = over_glass(0.065, dx=SHORT)
     assert pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2]) == "success"
     # a small roll dips a corner of the jug's bottom, only just above the rim, into it
     assert pw.rotate_gripper_to_param(bb, 0, rho=0.2, phi=0.0, theta=0.0) == "success"
     assert bb["gripper_rotation"] == (0.0, 0.0, 0.0) and bb["water"] == "jug"
+    # tipping it about the grasp point swings a corner of its bottom down into the glass on
+    # the way, though the jug ends clear of it: the gripper stays
     assert pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=math.pi / 2, theta=0.0) == "success"
-    assert bb["water"] == "glass"  # tipped over about the grasp point, the body swings clear
+    assert bb["gripper_rotation"] == (0.0, 0.0, 0.0) and bb["water"] == "jug"
+    assert not pw.held_jug_hits_glass(g, (0.0, math.pi / 2, 0.0), GLASS_RIM_WORLD)
+    g = over_glass(0.08, dx=SHORT)  # 1.5 cm higher the corner passes over the rim
+    assert pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2]) == "success"
+    assert pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=math.pi / 2, theta=0.0) == "success"
+    assert bb["water"] == "glass"
 
 
 def test_tilting_before_moving_over_the_glass_spills_for_good() -> None:
     bb = holding()
-    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=1.5, theta=0.0)
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=1.6, theta=0.0)
     assert bb["water"] == "spilled"
-    g = over_glass()
+    g = over_glass(dx=SHORT)
     pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
-    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=1.5, theta=0.0)
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=1.6, theta=0.0)
     assert bb["water"] == "spilled"
     assert pw.check_success(bb, 0) == "failure"
 
 
-def test_moving_an_already_tilted_jug_over_the_glass_pours_it() -> None:
+def test_a_jug_carried_tilted_but_not_level_pours_when_tipped_over_the_glass() -> None:
     bb = holding()
-    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=0.5, theta=0.0)  # 29°: stays in
-    g = over_glass()
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=-1.2, theta=0.0)  # 69°: stays in
+    g = over_glass(dx=-SHORT)
     pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
     assert bb["water"] == "jug"
-    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=-1.2, theta=0.0)
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=-1.6, theta=0.0)  # tipped towards -x
     assert bb["water"] == "glass"
 
 

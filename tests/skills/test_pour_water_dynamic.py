@@ -24,7 +24,7 @@ pytestmark = [pytest.mark.physics, pytest.mark.kinematics]
 
 ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT / "examples" / "pour_water_reference.fsa.yaml"
-POUR = {"rho": 0.0, "phi": 1.5708, "theta": 0.0}  # the reference's tilt: 90 deg about y
+POUR = {"rho": 0.0, "phi": 1.6, "theta": 0.0}  # the reference's tilt: 92 deg about y
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +76,7 @@ def test_grasp_holds_the_jug_while_it_is_lifted(task: Task) -> None:
 @pytest.mark.slow
 def test_tilt_over_the_glass_pours_and_the_water_stays(task: Task) -> None:
     episode = Episode(task)
-    episode.pour_at({"x": 0.6, "y": 0.2, "z": 0.95})  # the reference's spout over the glass
+    episode.pour_at({"x": 0.58, "y": 0.2, "z": 0.95})  # the reference's spout over the glass
     physics, bb = episode.physics, episode.bb
     assert bb["water"] == "glass"
     assert episode("CheckSuccess") == "success"
@@ -91,7 +91,7 @@ def test_tilt_over_the_glass_pours_and_the_water_stays(task: Task) -> None:
 @pytest.mark.slow
 def test_tilt_away_from_the_glass_spills(task: Task) -> None:
     episode = Episode(task)
-    episode.pour_at({"x": 0.6, "y": 0.0, "z": 0.95})  # 20 cm short of the glass
+    episode.pour_at({"x": 0.58, "y": 0.0, "z": 0.95})  # 20 cm short of the glass
     assert episode.bb["water"] == "spilled"
     assert episode.physics.particles_in("glass") == 0
     assert episode("CheckSuccess") == "failure"
