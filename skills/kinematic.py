@@ -21,23 +21,19 @@ what each gripper holds, beside the abstract world keys the twin writes. Keys, f
 
 Twins of the pour-water skills (section 4.1, :mod:`skillcompose.skills.pour_water`):
 
-- ``RecogniseObject``: as the abstract one (perception is not kinematics).
+- ``RecogniseObject`` and ``CheckSuccess``: as the abstract ones (perception is not kinematics).
 - ``MoveToObject``: the gripper upright 6 cm in front of the recognised jug, by IK (arm on
   the jug's side first, then the other).
-- ``GraspObject``: needs the gripper within 10 cm of the jug, then moves the tool onto the
-  jug (its spout) and closes: the jug is held.
+- ``GraspObject``: within 10 cm of the jug, the tool moves onto it (its spout) and closes.
 - ``MoveGripperToParam`` (x, y, z): the gripper, keeping its rotation, to (x, y, z) in world.
-- ``RotateGripperToParam`` (rho, phi, theta): the gripper rotated in place. Its twin has only
-  the ``success`` outcome, so an impossible rotation also returns ``success``: the gripper
-  does not move, ``last_failure_reason`` says why, and the world shows it (no water poured).
-- ``CheckSuccess``: as the abstract one.
+- ``RotateGripperToParam`` (rho, phi, theta): the gripper rotated in place; only ``success``:
+  an impossible rotation leaves the gripper, and ``last_failure_reason`` says why.
 
-Skills of the paper's other experiments, which have no abstract twin yet:
+Twins of the skills of the paper's other experiments:
 
-- ``MoveBase`` (weights), section 4.2: the twin of the network skill of
-  :mod:`skillcompose.skills.move_to_push` (built per topology by :func:`make_move_base`); the same
-  network gives the base pose, torso height and arm, then the base moves on the PR2 model.
-  Fails when the base or an arm hits the table or the base leaves the room.
+- ``MoveBase`` (weights), section 4.2, of :mod:`skillcompose.skills.move_to_push`'s network
+  skill (built per topology by :func:`make_move_base`): the same network gives the base pose,
+  torso height and arm; fails when the base or an arm hits the table or leaves the room.
 - ``Push``, section 4.2: the arm chosen by MoveBase pushes ``object_position_world`` 5 cm
   away from the robot, horizontally, torso fixed; fails when IK says it cannot.
 - ``GraspParam`` (which), ``MoveGripperToStack`` (which, dx, dy, dz), ``OpenGripper``,
@@ -106,7 +102,6 @@ from skillcompose.skills.pour_geometry import (
     Pitch,
     Roll,
     Yaw,
-    as_matrix3,
     glass_at,
     held_jug_hits_glass,
     held_jug_turns_into_glass,
@@ -312,11 +307,9 @@ def rotate_gripper_to_param(
 ) -> Literal["success"]:
     """Rotate the gripper in place to roll, pitch, yaw ``(rho, phi, theta)`` [rad] by IK.
 
-    A held jug pours as the abstract twin's rule says (the turn about the grasp point, the
-    lip over the glass; :mod:`skillcompose.skills.pour_water`). The abstract twin has only
-    ``success``: when the rotation is impossible, or would turn the held jug into the glass
-    on the way, the gripper stays, ``last_failure_reason`` says why, and the outcome is
-    still ``success``.
+    A held jug pours by the abstract twin's rule. The abstract twin has only ``success``:
+    when the rotation is impossible, or would turn the held jug into the glass, the gripper
+    stays, ``last_failure_reason`` says why, and the outcome is still ``success``.
     """
     state = read_state(bb)
     robot_to_world = transform_robot_to_world(state.base_pose_world)
@@ -327,8 +320,8 @@ def rotate_gripper_to_param(
     tool = robot_to_world * world.transform_tool_to_robot(
         arm, state.torso_height_m, state.q_arm_rad[arm])
     if _holding_arm(state, "jug") and held_jug_turns_into_glass(
-            tool.translation, as_matrix3(tool.rotation), rpy_matrix((rho, phi, theta)),
-            glass_at(bb)):
+            tool.translation, rpy_matrix(bb.get("gripper_rotation") or (0.0, 0.0, 0.0)),
+            rpy_matrix((rho, phi, theta)), glass_at(bb)):
         fail(bb, "collision", "RotateGripperToParam (gripper left as it was): the held jug "
              "would turn into the glass")
         return "success"
@@ -395,8 +388,8 @@ def reachable(
 
     The grasp is horizontal, pointing along the bearing from the base (the grasp of
     :mod:`skillcompose.robots.reachability`), the torso stays at its height, collisions with the
-    table (and, unless it is the object, the pour world's glass) count. ``yes`` when IK finds
-    a collision-free configuration; ``no`` writes the reason.
+    table (and the pour world's glass, unless it is the object) count. ``yes`` when IK
+    finds a collision-free configuration; ``no`` writes the reason.
     """
     position = object_position(bb, object)
     if position is None:
@@ -404,8 +397,8 @@ def reachable(
         return "no"
     state = read_state(bb)
     target = horizontal_grasp_world(state.base_pose_world, position)
-    scene = scene_world(bb, glass=object != "glass")  # the glass is the goal, not in the way
-    answer = reach(world, state, arm, target, scene, rng, move_torso=False)
+    answer = reach(world, state, arm, target, scene_world(bb, glass=object != "glass"), rng,
+                   move_torso=False)  # the glass, when it is the goal, is not in the way
     if answer.state is None:
         fail(bb, answer.reason, f"Reachable: {answer.detail}")
         return "no"

@@ -40,7 +40,7 @@ key                           meaning
                               :data:`DEFAULT_TABLE_WORLD`; None for no table
 ``obstacles_world``           more boxes to avoid (a tuple of ``Box``); default none
 ``glass_position_world``      in the pour world, the glass's rim centre: the glass is a box
-                              the arm avoids too (:func:`glass_box`)
+                              the arm avoids too (:func:`scene_world`)
 ``last_failure_reason``       why the last kinematic skill failed: one of
                               :data:`FAILURE_REASONS`
 ``last_failure_detail``       the same in words: skill, arm, target and solver status
@@ -87,12 +87,7 @@ from skillcompose.robots.model import (
     load_pr2,
 )
 from skillcompose.skill import SkillFn
-from skillcompose.skills.pour_geometry import (
-    GLASS_HALF_EXTENTS_M,
-    glass_at,
-    rpy_matrix,
-    water_after_motion,
-)
+from skillcompose.skills.pour_geometry import GLASS_HALF_EXTENTS_M, glass_at, move_held_water
 
 __all__ = [
     "ARM_IN_USE_KEY",
@@ -416,29 +411,8 @@ def commit(
     if new_stack is not None and new_stack != stack:
         bb["object_positions_world"] = new_stack
     if "jug" in state.held.values():
-        _move_water(bb, jug_before)
+        move_held_water(bb, jug_before)
     return tools
-
-
-def _move_water(bb: Blackboard, before: tuple[Any, Any] | None) -> None:
-    """The abstract skills' pouring rule
-    (:func:`~skillcompose.skills.pour_geometry.water_after_motion`) for the held jug moving
-    from the gripper's pose ``before`` (``gripper_position_world``, ``gripper_rotation``;
-    ``None``: it holds the jug only from now on) to the one just written: the commanded
-    rotation, as the abstract twin takes it, not the one IK reached within its tolerance,
-    so that both backends pour from the same poses."""
-    if bb.get("water") != "jug":
-        return
-    position, rotation = bb.get("gripper_position_world"), bb.get("gripper_rotation")
-    if position is None or rotation is None:
-        return
-    to, turned_to = _vec3(position), rpy_matrix(rotation)
-    start, turned = to, turned_to
-    if before is not None and before[0] is not None and before[1] is not None:
-        start, turned = _vec3(before[0]), rpy_matrix(before[1])
-    water = water_after_motion(start, turned, to, turned_to, bb.get("glass_position_world"))
-    if water is not None:
-        bb["water"] = water
 
 
 def fail(bb: Blackboard, reason: str, detail: str) -> Literal["failure"]:
@@ -488,22 +462,13 @@ def object_box(bb: Blackboard, name: str, centre_world: Sequence[float]) -> Box:
 
 def scene_world(bb: Blackboard, extra: Sequence[Box] = (), *, glass: bool = True) -> Scene:
     """The table, the pour world's glass (when ``glass_position_world`` is set and
-    ``glass``: the arm must not knock it over), ``obstacles_world`` and ``extra`` boxes, in
-    world."""
-    table = bb.get(TABLE_KEY, DEFAULT_TABLE_WORLD)
-    rim = glass_at(bb) if glass else None
+    ``glass``: the arm must not knock it over; a 9 x 9 x 12 cm box under its rim),
+    ``obstacles_world`` and ``extra`` boxes, in world."""
+    table, rim, g = bb.get(TABLE_KEY, DEFAULT_TABLE_WORLD), glass_at(bb), GLASS_HALF_EXTENTS_M
     boxes = ([table] if table is not None else []) + (
-        [glass_box(rim)] if rim is not None else []) + list(bb.get(OBSTACLES_KEY) or ()) + list(
-        extra)
+        [Box((rim[0], rim[1], rim[2] - g[2]), g, 0.0, "glass")] if glass and rim else []
+    ) + list(bb.get(OBSTACLES_KEY) or ()) + list(extra)
     return Scene(tuple(boxes))
-
-
-def glass_box(glass_world: Sequence[float]) -> Box:
-    """The pour world's glass as a scene box: a 9 x 9 x 12 cm cup under its rim's centre
-    ``glass_world`` [m]."""
-    g = GLASS_HALF_EXTENTS_M
-    return Box((float(glass_world[0]), float(glass_world[1]), float(glass_world[2]) - g[2]),
-               g, 0.0, "glass")
 
 
 def _scene_in_robot_frame(scene: Scene, base_pose_world: Sequence[float]) -> Scene:

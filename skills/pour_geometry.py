@@ -37,11 +37,11 @@ __all__ = [
     "Roll",
     "Vec3",
     "Yaw",
-    "as_matrix3",
     "distance",
     "glass_at",
     "held_jug_hits_glass",
     "held_jug_turns_into_glass",
+    "move_held_water",
     "pour_lip",
     "pour_point",
     "pours_into_glass",
@@ -231,11 +231,22 @@ def water_after_motion(grasp_from: Sequence[float], rotation_from: Matrix3,
     return "glass" if poured else None
 
 
-def as_matrix3(rows: Sequence[Sequence[float]] | Any) -> Matrix3:
-    """A 3 x 3 rotation (nested sequences or an array) as a :data:`Matrix3` of floats."""
-    r0, r1, r2 = rows
-    return ((float(r0[0]), float(r0[1]), float(r0[2])), (float(r1[0]), float(r1[1]),
-            float(r1[2])), (float(r2[0]), float(r2[1]), float(r2[2])))
+def move_held_water(bb: Blackboard, before: tuple[Any, Any] | None) -> None:
+    """Pour or spill the water of the jug a gripper holds after the gripper moved from the
+    pose ``before`` (``gripper_position_world``, ``gripper_rotation``; ``None``: it holds
+    the jug only from now on) to the one ``bb`` now says, by :func:`water_after_motion`:
+    the commanded rotation, so that the kinematic twins pour exactly where the abstract
+    skills do, not by the rotation IK reached within its tolerance."""
+    position, rotation = bb.get("gripper_position_world"), bb.get("gripper_rotation")
+    if bb.get("water") != "jug" or position is None or rotation is None:
+        return
+    start, turned = position, rotation
+    if before is not None and before[0] is not None and before[1] is not None:
+        start, turned = before
+    water = water_after_motion(start, rpy_matrix(turned), position, rpy_matrix(rotation),
+                               bb.get("glass_position_world"))
+    if water is not None:
+        bb["water"] = water
 
 
 def rpy_matrix(rotation: Sequence[float]) -> Matrix3:

@@ -24,7 +24,7 @@ STRICT = ("evolve/",)
 MODULES_ALLOWED = {
     "skillcompose/fsafile.py": 1049,
     "skills/kinematic.py": 760,
-    "skills/kinematic_world.py": 715,
+    "skills/kinematic_world.py": 705,
 }
 """Modules over the limit today, with their length in lines."""
 
