@@ -56,12 +56,15 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   cannot enter the glass, so an upright jug's spout stays at least 6.4 cm above the rim.
   With ``reach=pr2`` a pour also needs a rotation the arm can take there.
 - Equation (1) is applied in its order of cases: 0 for ``success``; 20 when the jug is not
-  in the gripper at the end; 2·d(jug, glass) on ``timeout``; d(jug, glass) otherwise, with d
-  the Euclidean distance [m] between the jug's spout and the glass's pouring point: 6.4 cm
-  above its rim's centre, where the upright jug's bottom is level with the rim
-  (:func:`~skillcompose.skills.pour_geometry.pour_point`). The jug cannot go lower over the
-  glass, and the places a tipped jug pours from lie a few centimetres around that point,
-  so a jug held beside the glass at rim height is farther from it than any of them.
+  in the gripper at the end; 2·d(jug, glass) on ``timeout``; d(jug, glass) otherwise. d is
+  the distance [m] from the water to the glass's pouring point, 5 cm above its rim's centre
+  (:func:`~skillcompose.skills.pour_geometry.pour_point`): while the water is in the jug,
+  from the jug's lip, where it would leave, plus the arc the lip still has to turn before
+  it leaves (:func:`~skillcompose.skills.pour_geometry.distance_to_pour`); once it has left,
+  from where it began to leave (``water_left_at_world``). Measured from the spout instead,
+  a jug spilled beforehand and carried to the glass scored as well as one about to pour,
+  and most runs stopped there; a jug held beside the glass at rim height scores worse than
+  any pose that pours (a test keeps both).
 - As in the paper, only CheckSuccess ends a run: the task sets ``terminal_skills``, so
   evolution routes CheckSuccess's outcomes to the terminals and every other outcome to a
   state. A hand-edited FSA may still route any outcome to a terminal; one that ends in
@@ -85,7 +88,7 @@ import numpy as np
 
 from skillcompose import TIMEOUT, Blackboard, Registry
 from skillcompose.skills import pour_water as skills_pour_water
-from skillcompose.skills.pour_geometry import pour_point
+from skillcompose.skills.pour_geometry import distance_to_pour, pour_point
 from skillcompose.skills.pour_water import Vec3, distance
 from skillcompose.task import Task, TaskError
 
@@ -153,7 +156,10 @@ def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
         return 0.0
     if not bb["holding_jug"]:
         return JUG_NOT_HELD_FITNESS
-    d = distance(bb["jug_position_world"], pour_point(bb["glass_position_world"]))
+    glass = bb["glass_position_world"]
+    left = bb.get("water_left_at_world") if bb["water"] != "jug" else None
+    d = distance(left, pour_point(glass)) if left is not None else \
+        distance_to_pour(bb["jug_position_world"], bb["gripper_rotation"], glass)
     return 2.0 * d if outcome == TIMEOUT else d
 
 

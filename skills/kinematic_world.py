@@ -211,7 +211,7 @@ WORLD_READS = (*_POUR_KEYS, *_OBJECT_KEYS)
 """World keys a moving skill reads: a held object moves with the gripper that holds it."""
 WORLD_WRITES = (
     "jug_position_world", "gripper_position_world", "gripper_rotation", "water",
-    "object_position_world", "object_positions_world",
+    "water_left_at_world", "object_position_world", "object_positions_world",
 )
 """World keys a moving skill may write."""
 

@@ -38,9 +38,11 @@ __all__ = [
     "Vec3",
     "Yaw",
     "distance",
+    "distance_to_pour",
     "glass_at",
     "held_jug_hits_glass",
     "held_jug_turns_into_glass",
+    "lip_at",
     "move_held_water",
     "pour_lip",
     "pour_point",
@@ -48,6 +50,7 @@ __all__ = [
     "rpy_matrix",
     "tilt",
     "water_after_motion",
+    "water_leaves",
 ]
 
 Vec3 = tuple[float, float, float]
@@ -89,9 +92,10 @@ POUR_MOUTH_ABOVE_GRASP_M = JUG_HALF_EXTENTS_M[2] - JUG_GRASP_ABOVE_CENTRE_M + JU
 (1.2 cm under the rim, plus :data:`JUG_SLIP_M`) [m]."""
 GLASS_HALF_EXTENTS_M = (0.045, 0.045, 0.06)
 """The glass's outside: 9 x 9 x 12 cm, its rim (``glass_position_world``) on top [m]."""
-POUR_POINT_ABOVE_RIM_M = JUG_GRASP_ABOVE_CENTRE_M + JUG_HALF_EXTENTS_M[2]
-"""Where an upright held jug comes closest to the glass from above: its spout this far over
-the rim's centre (6.4 cm), the jug's bottom level with the rim [m]."""
+POUR_POINT_ABOVE_RIM_M = 0.05
+"""Where the pour task's fitness leads the jug's lip (:func:`pour_point`): this far over the
+rim's centre, a height from which the lip of a jug tipped past level pours with the jug
+clear of the glass (its spout 8.5 cm over the rim) [m]."""
 JUG_GLASS_TOLERANCE_M = 0.001
 """A held jug may touch the glass by this much: it hits it when deeper [m]."""
 WORKSPACE_WORLD = ((0.20, 1.00), (-0.60, 0.60), (0.75, 1.50))
@@ -183,13 +187,23 @@ def _axis_angle(r: Matrix3) -> tuple[Vec3, float]:
 def water_after_motion(grasp_from: Sequence[float], rotation_from: Matrix3,
                        grasp_to: Sequence[float], rotation_to: Matrix3,
                        glass_world: Sequence[float] | None) -> str | None:
+    """:func:`water_leaves`' answer without the place: ``"glass"``, ``"spilled"`` or
+    ``None``."""
+    left = water_leaves(grasp_from, rotation_from, grasp_to, rotation_to, glass_world)
+    return None if left is None else left[0]
+
+
+def water_leaves(grasp_from: Sequence[float], rotation_from: Matrix3,
+                 grasp_to: Sequence[float], rotation_to: Matrix3,
+                 glass_world: Sequence[float] | None) -> tuple[str, Vec3] | None:
     """Where a held jug's water goes as the jug moves from one pose to another: its grasp
     point along the straight line, its rotation (world-frame matrices, the jug's axes along
     the tool's) along the shortest turn between the two, as the robot turns it. ``None``
     when no pose of the path tilts the jug to :data:`POUR_TILT_MIN_RAD`: the water stays in.
     Otherwise the water leaves at every pose tilted that far, over the lip (:func:`pour_lip`),
     and ends ``"glass"`` when every such pose is tilted at most :data:`POUR_TILT_MAX_RAD` with
-    its lip over the glass (:func:`pours_into_glass`), else ``"spilled"``.
+    its lip over the glass (:func:`pours_into_glass`), else ``"spilled"``; with it, the lip
+    of the first such pose, where the water began to leave.
 
     The water leaves as soon as the tilt passes level, wherever the lip is then: a rotation
     that tips the jug past level away from the glass spills, even if it ends over it (as in
@@ -216,19 +230,20 @@ def water_after_motion(grasp_from: Sequence[float], rotation_from: Matrix3,
         return None
     steps = max(1, math.ceil(angle / _PATH_STEP_RAD),
                 math.ceil(math.dist(grasp_from, grasp_to) / (POUR_RADIUS_M / 4)))
-    poured = False
+    first: Vec3 | None = None
     for i in range(steps + 1):
         s = i / steps
         ca, sa = math.cos(s * angle), math.sin(s * angle)
         axis = tuple(z0[k] * ca + cross[k] * sa + u[k] * uz * (1.0 - ca) for k in range(3))
         if axis[2] > cos_min:
             continue
-        poured = True
         grasp = tuple(grasp_from[k] + s * (grasp_to[k] - grasp_from[k]) for k in range(3))
+        lip = pour_lip(grasp, axis)
+        first = first or lip
         if glass_world is None or axis[2] < math.cos(POUR_TILT_MAX_RAD) or \
-                not pours_into_glass(pour_lip(grasp, axis), glass_world):
-            return "spilled"
-    return "glass" if poured else None
+                not pours_into_glass(lip, glass_world):
+            return "spilled", first
+    return None if first is None else ("glass", first)
 
 
 def move_held_water(bb: Blackboard, before: tuple[Any, Any] | None) -> None:
@@ -243,10 +258,10 @@ def move_held_water(bb: Blackboard, before: tuple[Any, Any] | None) -> None:
     start, turned = position, rotation
     if before is not None and before[0] is not None and before[1] is not None:
         start, turned = before
-    water = water_after_motion(start, rpy_matrix(turned), position, rpy_matrix(rotation),
-                               bb.get("glass_position_world"))
-    if water is not None:
-        bb["water"] = water
+    left = water_leaves(start, rpy_matrix(turned), position, rpy_matrix(rotation),
+                        bb.get("glass_position_world"))
+    if left is not None:
+        bb["water"], bb["water_left_at_world"] = left
 
 
 def rpy_matrix(rotation: Sequence[float]) -> Matrix3:
@@ -340,7 +355,26 @@ def _hits(grasp_world: Sequence[float], r: Matrix3, glass_world: Sequence[float]
 
 
 def pour_point(glass_world: Sequence[float]) -> tuple[float, float, float]:
-    """The spout's place closest to the glass from which the jug pours:
-    :data:`POUR_POINT_ABOVE_RIM_M` above the rim's centre ``glass_world`` [m]."""
+    """Where the water should leave the jug: :data:`POUR_POINT_ABOVE_RIM_M` above the rim's
+    centre ``glass_world`` [m]."""
     return (float(glass_world[0]), float(glass_world[1]),
             float(glass_world[2]) + POUR_POINT_ABOVE_RIM_M)
+
+
+def lip_at(grasp_world: Sequence[float], rotation: Sequence[float]) -> Vec3:
+    """:func:`pour_lip` of a jug held at ``grasp_world`` with the gripper at roll-pitch-yaw
+    ``rotation`` [rad]: where its water would leave (upright: its mouth's centre) [m]."""
+    r = rpy_matrix(rotation)
+    return pour_lip(grasp_world, (r[0][2], r[1][2], r[2][2]))
+
+
+def distance_to_pour(grasp_world: Sequence[float], rotation: Sequence[float],
+                     glass_world: Sequence[float]) -> float:
+    """How far a held jug that still holds its water is from pouring it at
+    :func:`pour_point` [m]: the distance from its lip (:func:`lip_at`) to that point, plus
+    the arc its lip still has to turn through before the water leaves (the mouth's radius
+    times the tilt short of :data:`POUR_TILT_MIN_RAD`), so that a jug tipped part way with
+    its lip at the point is not taken for one that pours."""
+    short = max(0.0, POUR_TILT_MIN_RAD - tilt(rotation))
+    return distance(lip_at(grasp_world, rotation), pour_point(glass_world)) + \
+        JUG_MOUTH_RADIUS_M * short

@@ -17,6 +17,8 @@ key                          meaning (written by the task's ``setup`` unless sai
 ``gripper_rotation``         the gripper's roll, pitch, yaw (ρ, φ, θ) [rad]
 ``holding_jug``              the jug is in the gripper
 ``water``                    where the water is: ``"jug"``, ``"glass"`` or ``"spilled"``
+``water_left_at_world``      where the water began to leave the jug (its lip then; absent
+                             while it is in the jug) [m]
 ``jug_location_world``       where RecogniseObject saw the jug (absent until then) [m]
 ``glass_location_world``     where RecogniseObject saw the glass (absent until then) [m]
 ``robot_check``              which robot the abstract skills ask before they pour
@@ -54,10 +56,8 @@ The jug is a body. The held jug hangs below its spout (the grasp point: 7.6 cm t
 glass is a 9 x 9 x 12 cm cup under its rim: a move or a rotation that would put the jug into
 the glass (:func:`~skillcompose.skills.pour_geometry.held_jug_hits_glass`) does not happen
 (MoveGripperToParam fails, RotateGripperToParam leaves the gripper as it was), on every
-backend. So an upright jug's spout comes no lower than 6.4 cm above the rim's centre; the
-task's fitness measures the distance to that point
-(:func:`~skillcompose.skills.pour_geometry.pour_point`), a few centimetres from the places
-a tipped jug pours from, so that it leads evolution there.
+backend. So an upright jug's spout comes no lower than 6.4 cm above the rim's centre, and
+a jug tipped over the glass from lower than about 8 cm swings a corner into it on the way.
 
 The robot. With ``robot_check`` set (the task's default, ``reach=pr2``), a pose that would
 pour into the glass is taken only if the PR2's arm can take it:
@@ -102,7 +102,7 @@ from skillcompose.skills.pour_geometry import (
     pours_into_glass,
     rpy_matrix,
     tilt,
-    water_after_motion,
+    water_leaves,
 )
 
 if TYPE_CHECKING:
@@ -155,21 +155,24 @@ def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
     return rng.random() < bb["p_fail"]
 
 
-def _water_after(bb: Blackboard, position: Vec3, rotation: Vec3) -> str | None:
+def _water_after(bb: Blackboard, position: Vec3, rotation: Vec3) -> tuple[str, Vec3] | None:
     """Where the held jug's water would go if the jug moved from its pose now to
     ``position`` and ``rotation`` (:func:`~skillcompose.skills.pour_geometry.water_after_motion`):
-    ``None`` when it stays in the jug, or when there is no held jug with water in it."""
+    ``None`` when it stays in the jug, or when there is no held jug with water in it; else
+    where it ends and where it began to leave
+    (:func:`~skillcompose.skills.pour_geometry.water_leaves`)."""
     if not bb["holding_jug"] or bb["water"] != "jug":
         return None
-    return water_after_motion(bb["jug_position_world"], rpy_matrix(bb["gripper_rotation"]),
-                              position, rpy_matrix(rotation), bb["glass_position_world"])
+    return water_leaves(bb["jug_position_world"], rpy_matrix(bb["gripper_rotation"]),
+                        position, rpy_matrix(rotation), bb["glass_position_world"])
 
 
 def _robot_can_take(bb: Blackboard, position: Vec3, rotation: Vec3) -> bool:
     """Whether the held jug may move to this pose: always, unless the move would pour into
     the glass and the robot check (``robot_check``) says the PR2's arm cannot take it."""
     check = bb.get("robot_check")
-    if check is None or _water_after(bb, position, rotation) != "glass":
+    left = None if check is None else _water_after(bb, position, rotation)
+    if left is None or left[0] != "glass":
         return True
     # imported here: the PR2 model loads only when a pose would pour
     from skillcompose.skills.pour_robot import can_pour
@@ -227,7 +230,7 @@ def move_to_object(
         "jug_location_world", "gripper_position_world", "gripper_rotation", "p_fail",
         "glass_position_world", "water",
     ),
-    writes=("holding_jug", "jug_position_world", "water"),
+    writes=("holding_jug", "jug_position_world", "water", "water_left_at_world"),
     backend="sim",
 )
 def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
@@ -248,17 +251,17 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
     bb["jug_position_world"] = gripper
     rotation = bb["gripper_rotation"]
     if bb["water"] == "jug":  # a tilted gripper tilts the jug at once, where it is
-        water = water_after_motion(gripper, rpy_matrix(rotation), gripper,
-                                   rpy_matrix(rotation), bb["glass_position_world"])
-        if water is not None:
-            bb["water"] = water
+        left = water_leaves(gripper, rpy_matrix(rotation), gripper, rpy_matrix(rotation),
+                            bb["glass_position_world"])
+        if left is not None:
+            bb["water"], bb["water_left_at_world"] = left
     return "success"
 
 
 @skill(
     reads=("p_fail", "holding_jug", "gripper_rotation", "glass_position_world", "robot_check",
            "jug_position_world", "water"),
-    writes=("gripper_position_world", "jug_position_world", "water"),
+    writes=("gripper_position_world", "jug_position_world", "water", "water_left_at_world"),
     backend="sim",
 )
 def move_gripper_to_param(
@@ -283,19 +286,19 @@ def move_gripper_to_param(
         return "failure"
     if not _robot_can_take(bb, target, bb["gripper_rotation"]):
         return "failure"
-    water = _water_after(bb, target, bb["gripper_rotation"])
+    left = _water_after(bb, target, bb["gripper_rotation"])
     bb["gripper_position_world"] = target
     if bb["holding_jug"]:
         bb["jug_position_world"] = target
-    if water is not None:
-        bb["water"] = water
+    if left is not None:
+        bb["water"], bb["water_left_at_world"] = left
     return "success"
 
 
 @skill(
     reads=("holding_jug", "jug_position_world", "glass_position_world", "robot_check",
            "gripper_rotation", "water"),
-    writes=("gripper_rotation", "water"),
+    writes=("gripper_rotation", "water", "water_left_at_world"),
     backend="sim",
 )
 def rotate_gripper_to_param(
@@ -319,10 +322,10 @@ def rotate_gripper_to_param(
         return "success"  # the jug would turn into the glass: the gripper stays
     if not _robot_can_take(bb, bb["jug_position_world"], (rho, phi, theta)):
         return "success"
-    water = _water_after(bb, bb["jug_position_world"], (rho, phi, theta))
+    left = _water_after(bb, bb["jug_position_world"], (rho, phi, theta))
     bb["gripper_rotation"] = (rho, phi, theta)
-    if water is not None:
-        bb["water"] = water
+    if left is not None:
+        bb["water"], bb["water_left_at_world"] = left
     return "success"
 
 

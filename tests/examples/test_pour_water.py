@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import math
+
 import numpy as np
 import pytest
 
@@ -15,17 +17,22 @@ ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT / "examples" / "pour_water_reference.fsa.yaml"
 
 
+LEVEL = (0.0, math.pi / 2, 0.0)  # tipped level towards +x: the lip 2.8 cm on, 3.5 cm down
+
+
 def end_state(
-    *, holding: bool, spout: tuple[float, float, float], water: str = "jug"
+    *, holding: bool, spout: tuple[float, float, float], water: str = "jug",
+    rotation: tuple[float, float, float] = LEVEL,
 ) -> Blackboard:
     bb = ex.setup(np.random.default_rng(0))
     bb["holding_jug"] = holding
     bb["jug_position_world"] = spout
+    bb["gripper_rotation"] = rotation
     bb["water"] = water
     return bb
 
 
-SPOUT = (0.60, 0.50, 0.934)  # 30 cm beside the pouring point, 6.4 cm over the rim's centre
+SPOUT = (0.572, 0.50, 0.955)  # tipped level, its lip 30 cm beside the pouring point
 D = 0.30
 
 
@@ -45,6 +52,24 @@ def test_fitness_is_twice_the_distance_on_timeout() -> None:
 
 def test_fitness_is_the_distance_otherwise() -> None:
     assert ex.fitness("failure", end_state(holding=True, spout=SPOUT), 7) == pytest.approx(D)
+
+
+def test_the_distance_is_the_waters_to_the_pouring_point() -> None:
+    """Still in the jug: from the lip, plus the arc the lip must turn before the water
+    leaves; spilled: from where it began to leave."""
+    from skillcompose.skills.pour_geometry import JUG_MOUTH_RADIUS_M
+
+    gx, gy, gz = ex.GLASS_RIM_WORLD
+    at_point = (gx - 0.028, gy, gz + 0.05 + 0.035)  # the level jug's lip at the point
+    assert ex.fitness("failure", end_state(holding=True, spout=at_point), 7) == \
+        pytest.approx(0.0, abs=1e-9)
+    # tipped 60 degrees at the same spout, the jug keeps its water: the 30 degrees of arc
+    # its lip still has to turn count
+    short = end_state(holding=True, spout=at_point, rotation=(0.0, math.pi / 3, 0.0))
+    assert ex.fitness("failure", short, 7) > JUG_MOUTH_RADIUS_M * math.pi / 6
+    spilled = end_state(holding=True, spout=(0.2, -0.5, 1.4), water="spilled")
+    spilled["water_left_at_world"] = (gx, gy + 0.1, gz + 0.05)
+    assert ex.fitness("failure", spilled, 7) == pytest.approx(0.1)
 
 
 def test_success_without_water_in_the_glass_is_not_rewarded() -> None:
@@ -133,10 +158,10 @@ def test_a_chain_without_retries_fails_as_often_as_p_fail_predicts() -> None:
 
 
 def test_the_closest_place_to_the_glass_is_one_that_pours() -> None:
-    """The fitness's distance is to the pouring point, 6.4 cm over the rim (the jug cannot
-    go lower over the glass): a jug held just beside the glass at rim height, where the
-    distance to the rim itself is small, scores worse than every spout position that pours
-    (drawn with rotations that pour from there, the jug clear of the glass)."""
+    """The fitness's distance is from the jug's lip to the pouring point, 5 cm over the rim:
+    a jug held upright just beside the glass at rim height, where the distance to the rim
+    itself is small, scores worse than every pose that pours, taken as if its water were
+    still in (drawn with rotations that pour from there, the jug clear of the glass)."""
     from skillcompose.skills.pour_geometry import (
         held_jug_hits_glass,
         rpy_matrix,
@@ -158,6 +183,7 @@ def test_the_closest_place_to_the_glass_is_one_that_pours() -> None:
                 spout, upright, spout, rpy_matrix(rotation), ex.GLASS_RIM_WORLD) != "glass":
             continue
         pouring += 1
-        there = ex.fitness("failure", end_state(holding=True, spout=spout), 9)
+        there = ex.fitness("failure", end_state(holding=True, spout=spout, rotation=rotation), 9)
         worst_in_window = max(worst_in_window, there)
-    assert ex.fitness("failure", end_state(holding=True, spout=beside), 9) > worst_in_window
+    upright = end_state(holding=True, spout=beside, rotation=(0.0, 0.0, 0.0))
+    assert ex.fitness("failure", upright, 9) > worst_in_window
