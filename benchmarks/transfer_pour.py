@@ -169,11 +169,13 @@ def report(rows: dict[str, list[dict[str, Any]]], runs: int, seed: int,
                          f"{outcomes} | {_rate(row['episodes_per_s'])} | {speed} |")
     lines += ["", "The FSAs: `reference` is examples/pour_water_reference.fsa.yaml, written by "
               "hand; `evolved` is docs/results/pour_water_best.fsa.yaml, the best of "
-              "`benchmarks/reproduce_pour_water.py` (its world: the task's default "
-              "`reach=pr2`, the abstract skills pour only from a pose the PR2 model can take); "
-              "`evolved, reach=physics` is docs/results/pour_water_physics.fsa.yaml, evolved "
-              "by this script with the default preset on `reach=physics` (the abstract skills "
-              "pour only from a pose from which the PR2 in MuJoCo pours)."]
+              "`benchmarks/reproduce_pour_water.py` (its world: the abstract pouring rule "
+              "measured against MuJoCo by `benchmarks/pour_rule.py`, and the task's default "
+              "`reach=pr2`: the abstract skills pour only from a pose the PR2 model can take)"
+              + ("; `evolved, reach=physics` is docs/results/pour_water_physics.fsa.yaml, "
+                 "evolved by this script with the default preset on `reach=physics` (the "
+                 "abstract skills pour only from a pose from which the PR2 in MuJoCo pours)"
+                 if "evolved, reach=physics" in rows else "") + "."]
     if evolved_physics is not None:
         e = evolved_physics
         fresh = e["fresh"] or {}
@@ -231,11 +233,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     # what an earlier run evolved is kept with its file, when this run does not redo it
     earlier = json.loads((args.out / "transfer_pour.json").read_text(encoding="utf-8")) \
         if (args.out / "transfer_pour.json").is_file() else {}
-    evolved_physics = earlier.get("evolved_physics")
+    # (only while the file it wrote is there to measure)
+    evolved_physics = earlier.get("evolved_physics") \
+        if FSAS["evolved, reach=physics"].is_file() else None
     if args.evolve_physics is not None:
         evolved_physics = evolve_physics(args.evolve_physics, args.generations)
         print(f"evolved with reach=physics: {evolved_physics}", flush=True)
-    finetuned = earlier.get("finetuned")
+    finetuned = earlier.get("finetuned") \
+        if FSAS["evolved, fine-tuned on dynamic"].is_file() else None
     if args.finetune_dynamic is not None:
         finetuned = finetune_dynamic(args.finetune_dynamic, args.finetune_episodes)
         print(f"fine-tuned on dynamic: {finetuned}", flush=True)
@@ -243,7 +248,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, path in FSAS.items():
         if not path.is_file():
             print(f"{name}: {path.relative_to(ROOT)} does not exist (--evolve-physics SEED "
-                  "writes it); not measured", flush=True)
+                  "or --finetune-dynamic SEED writes it); not measured", flush=True)
             continue
         for backend in args.backends:
             row = measure(path, backend, args.runs, args.seed)
