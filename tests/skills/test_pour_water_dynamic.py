@@ -135,21 +135,13 @@ def test_the_reference_fsa_pours_on_the_dynamic_backend(task: Task) -> None:
 
 
 @pytest.mark.slow
-def test_the_fsas_evolved_or_tuned_against_the_physics_pour_there(task: Task) -> None:
-    # docs/results/pour_water_physics.fsa.yaml, evolved with reach=physics, and
-    # pour_water_finetuned.fsa.yaml, the reach=pr2 one fine-tuned on this backend, pour
-    # here; the reach=pr2 one as evolved spills
-    compiled = task.compile(load_fsa(ROOT / "docs" / "results" / "pour_water_physics.fsa.yaml"))
+def test_the_shipped_evolved_fsa_pours_there(task: Task) -> None:
+    # docs/results/pour_water_best.fsa.yaml, evolved on the abstract skills whose pouring
+    # rule was measured against this backend (benchmarks/pour_rule.py), pours here unchanged
+    compiled = task.compile(load_fsa(ROOT / "docs" / "results" / "pour_water_best.fsa.yaml"))
     trial = next(iter(task.each_trial(compiled, 3, 1)))
     assert trial.fitness == 0.0 and trial.blackboard is not None
     assert trial.blackboard["water"] == "glass"
-    tuned = task.compile(load_fsa(ROOT / "docs" / "results" / "pour_water_finetuned.fsa.yaml"))
-    trial = next(iter(task.each_trial(tuned, 3, 1)))  # that one fine-tuned on this backend
-    assert trial.fitness == 0.0 and trial.blackboard is not None
-    spilled = task.compile(load_fsa(ROOT / "docs" / "results" / "pour_water_best.fsa.yaml"))
-    trial = next(iter(task.each_trial(spilled, 3, 1)))
-    assert trial.fitness > 0.0 and trial.blackboard is not None
-    assert trial.blackboard["water"] == "spilled"
 
 
 @pytest.mark.slow
