@@ -114,7 +114,7 @@ def test_fsa_page_draws_states_edges_and_units(viewer: Viewer, runs_dir: Path,
                           st.transitions.values()))
     assert sorted(g["edges"]) == expected
     text = page.page.get_by_test_id("fsa-graph").inner_text()
-    assert "x = 0.6 m (float in [0.2, 1])" in text  # the value with its unit and range
+    assert "x = 0.58 m (float in [0.2, 1])" in text  # the value with its unit and range
     assert "valid; checked against task pour_water" in page.page.inner_text("body")
     assert page.errors == []
 
