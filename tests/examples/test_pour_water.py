@@ -177,12 +177,13 @@ def test_the_closest_place_to_the_glass_is_one_that_pours() -> None:
     while pouring < 300:
         r, a = 0.06 * np.sqrt(rng.random()), 2 * np.pi * rng.random()
         spout = (gx + r * np.cos(a), gy + r * np.sin(a), gz + rng.uniform(0.0, 0.2))
-        rotation = tuple(float(v) for v in rng.uniform(-np.pi, np.pi, 3))
+        rx, ry, rz = (float(v) for v in rng.uniform(-np.pi, np.pi, 3))
+        rotation = (rx, ry, rz)
         if held_jug_hits_glass(spout, rotation, ex.GLASS_RIM_WORLD) or water_after_motion(
                 spout, upright, spout, rpy_matrix(rotation), ex.GLASS_RIM_WORLD) != "glass":
             continue
         pouring += 1
         there = ex.fitness("failure", end_state(holding=True, spout=spout, rotation=rotation), 9)
         worst_in_window = max(worst_in_window, there)
-    upright = end_state(holding=True, spout=beside, rotation=(0.0, 0.0, 0.0))
-    assert ex.fitness("failure", upright, 9) > worst_in_window
+    held_upright = end_state(holding=True, spout=beside, rotation=(0.0, 0.0, 0.0))
+    assert ex.fitness("failure", held_upright, 9) > worst_in_window
