@@ -196,12 +196,10 @@ def report(rows: dict[str, list[dict[str, Any]]], runs: int, seed: int,
                   "per generation: " + ", ".join(f"{b:.4g}" for _, b, _ in f["history"])
                   + "."]
     lines += ["", "## Runs that did not pour, by cause", ""]
-    for name, per_backend in rows.items():
-        for row in per_backend:
-            if not row["causes"]:
-                continue
-            lines.append(f"- **{name}, {row['backend']}**: " + "; ".join(
-                f"{cause}: {count}" for cause, count in row["causes"].items()))
+    causes = [f"- **{name}, {row['backend']}**: " + "; ".join(
+        f"{cause}: {count}" for cause, count in row["causes"].items())
+        for name, per_backend in rows.items() for row in per_backend if row["causes"]]
+    lines += causes or ["- none: every run of every FSA poured"]
     lines += ["", "## Particles in the glass at the end (dynamic)", ""]
     for name, per_backend in rows.items():
         for row in per_backend:

@@ -167,12 +167,13 @@ def _water_after(bb: Blackboard, position: Vec3, rotation: Vec3) -> tuple[str, V
                         position, rpy_matrix(rotation), bb["glass_position_world"])
 
 
-def _robot_can_take(bb: Blackboard, position: Vec3, rotation: Vec3) -> bool:
-    """Whether the held jug may move to this pose: always, unless the move would pour into
-    the glass and the robot check (``robot_check``) says the PR2's arm cannot take it."""
+def _robot_can_take(bb: Blackboard, left: tuple[str, Vec3] | None, position: Vec3,
+                    rotation: Vec3) -> bool:
+    """Whether the held jug may move to this pose, where its water goes as ``left`` says
+    (:func:`_water_after`): always, unless it would pour into the glass and the robot check
+    (``robot_check``) says the PR2's arm cannot take the pose."""
     check = bb.get("robot_check")
-    left = None if check is None else _water_after(bb, position, rotation)
-    if left is None or left[0] != "glass":
+    if check is None or left is None or left[0] != "glass":
         return True
     # imported here: the PR2 model loads only when a pose would pour
     from skillcompose.skills.pour_robot import can_pour
@@ -284,9 +285,9 @@ def move_gripper_to_param(
     if bb["holding_jug"] and held_jug_hits_glass(target, bb["gripper_rotation"],
                                                  bb["glass_position_world"]):
         return "failure"
-    if not _robot_can_take(bb, target, bb["gripper_rotation"]):
-        return "failure"
     left = _water_after(bb, target, bb["gripper_rotation"])
+    if not _robot_can_take(bb, left, target, bb["gripper_rotation"]):
+        return "failure"
     bb["gripper_position_world"] = target
     if bb["holding_jug"]:
         bb["jug_position_world"] = target
@@ -320,9 +321,9 @@ def rotate_gripper_to_param(
             bb["jug_position_world"], rpy_matrix(bb["gripper_rotation"]),
             rpy_matrix((rho, phi, theta)), bb["glass_position_world"]):
         return "success"  # the jug would turn into the glass: the gripper stays
-    if not _robot_can_take(bb, bb["jug_position_world"], (rho, phi, theta)):
-        return "success"
     left = _water_after(bb, bb["jug_position_world"], (rho, phi, theta))
+    if not _robot_can_take(bb, left, bb["jug_position_world"], (rho, phi, theta)):
+        return "success"
     bb["gripper_rotation"] = (rho, phi, theta)
     if left is not None:
         bb["water"], bb["water_left_at_world"] = left
