@@ -156,6 +156,14 @@ def pour_lip(grasp_world: Sequence[float], axis: Sequence[float]) -> Vec3:
 _PATH_STEP_RAD = math.radians(3.0)
 """The held jug's path is judged at rotations this far apart, at most."""
 
+def _turn(rotation_from: Matrix3, rotation_to: Matrix3) -> tuple[Vec3, float]:
+    """The shortest turn from one rotation to the other, in the world frame: the unit axis
+    and angle [rad] of ``rotation_to . rotation_from^T``."""
+    d = tuple(tuple(sum(rotation_to[i][k] * rotation_from[j][k] for k in range(3))
+                    for j in range(3)) for i in range(3))
+    return _axis_angle(d)  # type: ignore[arg-type]
+
+
 def _axis_angle(r: Matrix3) -> tuple[Vec3, float]:
     """The unit axis and angle [rad] of rotation matrix ``r``, by way of its quaternion
     (Shepperd's method: exact also near half a turn)."""
@@ -211,10 +219,7 @@ def water_leaves(grasp_from: Sequence[float], rotation_from: Matrix3,
     cos_min = math.cos(POUR_TILT_MIN_RAD) + 1e-12
     z0 = (rotation_from[0][2], rotation_from[1][2], rotation_from[2][2])
     z1 = (rotation_to[0][2], rotation_to[1][2], rotation_to[2][2])
-    # the turn from the first rotation to the second, in the world frame: d = to . from^T
-    d = tuple(tuple(sum(rotation_to[i][k] * rotation_from[j][k] for k in range(3))
-                    for j in range(3)) for i in range(3))
-    u, angle = _axis_angle(d)  # type: ignore[arg-type]
+    u, angle = _turn(rotation_from, rotation_to)
     # the jug's axis on the way: z(s) = z0 cos(sa) + (u x z0) sin(sa) + u (u.z0)(1 - cos(sa)),
     # its height a + b cos(sa) + c sin(sa); a quick answer when it never comes down to level
     uz = u[0] * z0[0] + u[1] * z0[1] + u[2] * z0[2]
@@ -307,9 +312,7 @@ def held_jug_turns_into_glass(grasp_world: Sequence[float], rotation_from: Matri
            max(abs(grasp_world[2] - (glass_world[2] - g[2])) - g[2], 0.0))
     if gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2 > _JUG_REACH_M**2:
         return False  # farther from the glass than any point of the jug from its grasp
-    d = tuple(tuple(sum(rotation_to[i][k] * rotation_from[j][k] for k in range(3))
-                    for j in range(3)) for i in range(3))
-    u, angle = _axis_angle(d)  # type: ignore[arg-type]
+    u, angle = _turn(rotation_from, rotation_to)
     steps = max(1, math.ceil(angle / _PATH_STEP_RAD))
     for i in range(1, steps + 1):
         turn = _axis_angle_matrix(u, angle * i / steps)
