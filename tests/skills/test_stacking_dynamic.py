@@ -15,7 +15,7 @@ pytest.importorskip("mujoco")
 
 from skillcompose import Blackboard, compile_fsa, load_fsa
 from skillcompose.executor import trial_rngs
-from skillcompose.robots.model import ARMS
+from skillcompose.robots.model import ARMS, Arm
 from skillcompose.skills import kinematic as skills_kinematic
 from skillcompose.skills import stacking_dynamic as sd
 from skillcompose.skills import stacking_transits as transits
@@ -59,13 +59,19 @@ def _call(task: Task, bb: Blackboard, rng: np.random.Generator, name: str,
         bb, rng, **params))
 
 
+def _grasp(task: Task, bb: Blackboard, rng: np.random.Generator) -> Arm:
+    """GraspParam on the scene's grasp target, asserted to succeed; the arm in use."""
+    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
+        bb.get("last_failure_detail")
+    arm: Arm = bb["arm_in_use"]
+    return arm
+
+
 def test_a_grasped_box_is_carried_and_rests_on_the_other() -> None:
     task, bb, rng = _scene(1)
     assert _call(task, bb, rng, "RecogniseObject") == "success"
     assert _call(task, bb, rng, "MoveToReach") == "success"
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
-    arm = bb["arm_in_use"]
+    arm = _grasp(task, bb, rng)
     carried = bb[f"held_object_{arm}"]
     assert carried is not None
     world = world_of(task.registry)
@@ -89,9 +95,7 @@ def test_a_transit_through_the_table_goes_over_it() -> None:
     assert _call(task, bb, rng, "RecogniseObject") == "success"
     assert _call(task, bb, rng, "MoveToReach") == "success"
     before = unfolded(read_state(bb), ARMS)
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
-    arm = bb["arm_in_use"]
+    arm = _grasp(task, bb, rng)
     assert world.physics.held_object(arm) == bb["grasp_target"]
     planned = read_state(bb)
     route = sd.clear_transits(world.physics, arm, before, [planned])
@@ -224,8 +228,7 @@ def test_a_grasp_without_a_straight_approach_to_its_plan_is_replanned(
     # (a joint limit); another arm for the same grasp pose has one, and the grasp holds
     task, bb, rng, world = _prepared(1)
     replanned = _found_by(monkeypatch, "_regrasp")
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
+    _grasp(task, bb, rng)
     assert replanned == [True]
     arm = bb["arm_in_use"]
     assert world.physics.held_object(arm) == bb["grasp_target"]
@@ -235,9 +238,7 @@ def test_a_carried_box_is_lifted_above_the_other_and_the_check_sees_it() -> None
     # a 12 cm box carried 10 cm up swept the other off (scene 16); it goes up until its
     # bottom clears the other's top by CLEAR_M (scene 3), and a carried object is checked
     task, bb, rng, world = _prepared(3)
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
-    arm = bb["arm_in_use"]
+    arm = _grasp(task, bb, rng)
     carried = bb[f"held_object_{arm}"]
     other = next(n for n in bb["object_positions_world"] if n != carried)
     physics = world.physics
@@ -298,8 +299,7 @@ def test_a_missed_grasp_opens_and_backs_out_along_its_approach_and_the_retry_hol
     target = bb["grasp_target"]
     box = np.array(physics.object_pose(target)[:3])
     assert physics.upright(target)
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
+    _grasp(task, bb, rng)
     assert physics.held_object(arm) == target
     assert float(np.linalg.norm(np.array(physics.object_pose(target)[:2]) - box[:2])) < 0.02
 
@@ -313,8 +313,7 @@ def test_a_grasp_whose_approach_passes_the_other_object_comes_from_another_beari
     turned = _found_by(monkeypatch, "_turned")
     target = bb["object_positions_world"]
     other = {n: np.array(world.physics.object_pose(n)[:3]) for n in target}
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
+    _grasp(task, bb, rng)
     assert turned == [True]
     arm = bb["arm_in_use"]
     held_name = bb["grasp_target"]
@@ -354,9 +353,7 @@ def test_a_stack_goal_out_of_the_arms_limits_is_reached_with_the_gripper_turned(
     # outside the joint limits; turned about the vertical it is reached, and the box is
     # carried there in the fingers
     task, bb, rng, world = _prepared(81)
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
-    arm = bb["arm_in_use"]
+    arm = _grasp(task, bb, rng)
     carried = bb[f"held_object_{arm}"]
     assert skills_kinematic.move_gripper_to_stack.impl(world.kinematic, bb, rng, **STACK) \
         == "failure"
@@ -383,8 +380,7 @@ def test_a_grasp_planned_from_above_is_retried_from_the_side(
         return out
 
     monkeypatch.setattr(skills_kinematic, "grasp_param", KinematicSkill(plan.spec, spy))
-    assert _call(task, bb, rng, "GraspParam", which=WHICH_GRASP) == "success", \
-        bb.get("last_failure_detail")
+    _grasp(task, bb, rng)
     assert kinds == ["top"] and bb[GRASP_KEY] == "side"
     arm = bb["arm_in_use"]
     assert world.physics.held_object(arm) == bb["grasp_target"]
