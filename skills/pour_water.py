@@ -99,6 +99,7 @@ from skillcompose.skills.pour_geometry import (
     distance,
     held_jug_hits_glass,
     held_jug_turns_into_glass,
+    move_held_water,
     pours_into_glass,
     rpy_matrix,
     tilt,
@@ -250,12 +251,7 @@ def grasp_object(bb: Blackboard, rng: np.random.Generator) -> Literal["success",
         return "failure"
     bb["holding_jug"] = True
     bb["jug_position_world"] = gripper
-    rotation = bb["gripper_rotation"]
-    if bb["water"] == "jug":  # a tilted gripper tilts the jug at once, where it is
-        left = water_leaves(gripper, rpy_matrix(rotation), gripper, rpy_matrix(rotation),
-                            bb["glass_position_world"])
-        if left is not None:
-            bb["water"], bb["water_left_at_world"] = left
+    move_held_water(bb, None)  # a tilted gripper tilts the jug at once, where it is
     return "success"
 
 
