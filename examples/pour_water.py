@@ -61,10 +61,13 @@ Decisions where section 4.1 is vague (kept by the skills and by this task):
   (:func:`~skillcompose.skills.pour_geometry.pour_point`): while the water is in the jug,
   from the jug's lip, where it would leave, plus the arc the lip still has to turn before
   it leaves (:func:`~skillcompose.skills.pour_geometry.distance_to_pour`); once it has left,
-  from where it began to leave (``water_left_at_world``). Measured from the spout instead,
-  a jug spilled beforehand and carried to the glass scored as well as one about to pour,
-  and most runs stopped there; a jug held beside the glass at rim height scores worse than
-  any pose that pours (a test keeps both).
+  from where it left (``water_left_at_world``): where it began to pour into the glass, or,
+  spilled, where it first missed the glass. Measured from the spout instead, a jug spilled
+  beforehand and carried to the glass scored as well as one about to pour, and most runs
+  stopped there; measured from where spilled water began to leave, a turn that began over
+  the glass and swung away scored about 0, and runs stopped there. A jug
+  held beside the glass at rim height scores worse than any pose that pours (a test keeps
+  both).
 - As in the paper, only CheckSuccess ends a run: the task sets ``terminal_skills``, so
   evolution routes CheckSuccess's outcomes to the terminals and every other outcome to a
   state. A hand-edited FSA may still route any outcome to a terminal; one that ends in

@@ -17,8 +17,9 @@ key                          meaning (written by the task's ``setup`` unless sai
 ``gripper_rotation``         the gripper's roll, pitch, yaw (ρ, φ, θ) [rad]
 ``holding_jug``              the jug is in the gripper
 ``water``                    where the water is: ``"jug"``, ``"glass"`` or ``"spilled"``
-``water_left_at_world``      where the water began to leave the jug (its lip then; absent
-                             while it is in the jug) [m]
+``water_left_at_world``      where the water left the jug, its lip then: where it began to
+                             pour into the glass, or where it first missed the glass
+                             (absent while it is in the jug) [m]
 ``jug_location_world``       where RecogniseObject saw the jug (absent until then) [m]
 ``glass_location_world``     where RecogniseObject saw the glass (absent until then) [m]
 ``robot_check``              which robot the abstract skills ask before they pour
@@ -160,7 +161,7 @@ def _water_after(bb: Blackboard, position: Vec3, rotation: Vec3) -> tuple[str, V
     """Where the held jug's water would go if the jug moved from its pose now to
     ``position`` and ``rotation`` (:func:`~skillcompose.skills.pour_geometry.water_after_motion`):
     ``None`` when it stays in the jug, or when there is no held jug with water in it; else
-    where it ends and where it began to leave
+    where it ends and where it left
     (:func:`~skillcompose.skills.pour_geometry.water_leaves`)."""
     if not bb["holding_jug"] or bb["water"] != "jug":
         return None

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from examples import pour_water as ex
+from skillcompose.skills import pour_water as pw
 from skillcompose import FSA, Blackboard, CompiledFSA, State, compile_fsa, load_fsa
 from skillcompose.task import Task, TaskError, load_task
 
@@ -69,6 +70,23 @@ def test_the_distance_is_the_waters_to_the_pouring_point() -> None:
     spilled = end_state(holding=True, spout=(0.2, -0.5, 1.4), water="spilled")
     spilled["water_left_at_world"] = (gx, gy + 0.1, gz + 0.05)
     assert ex.fitness("failure", spilled, 7) == pytest.approx(0.1)
+
+
+def test_a_turn_that_pours_then_swings_away_scores_where_it_missed() -> None:
+    """The trap the place of spilled water closes: a turn that began to pour at the
+    pouring point and tipped on past 120° scores the distance from where it missed (2 cm
+    and more here), not about 0 from where it began."""
+    bb = end_state(holding=True, spout=SPOUT, rotation=(0.0, 0.0, 0.0))
+    bb["p_fail"] = 0.0
+    gx, gy, gz = ex.GLASS_RIM_WORLD
+    at = (gx - 0.02, gy, gz + 0.08)
+    pw.move_gripper_to_param(bb, 0, x=at[0], y=at[1], z=at[2])
+    poured = Blackboard({k: bb[k] for k in bb.keys()})
+    pw.rotate_gripper_to_param(poured, 0, rho=0.0, phi=1.6, theta=0.0)
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=2.6, theta=0.0)
+    assert poured["water"] == "glass" and bb["water"] == "spilled"
+    assert ex.fitness("failure", poured, 7) < 0.01
+    assert ex.fitness("failure", bb, 7) > 0.02
 
 
 def test_success_without_water_in_the_glass_is_not_rewarded() -> None:

@@ -225,6 +225,30 @@ def test_the_water_leaves_as_soon_as_the_jug_tips_past_level() -> None:
     assert bb["water"] == "glass"  # on to 92°, over the glass
 
 
+def test_spilled_water_is_placed_where_it_missed_the_glass() -> None:
+    """Tipped on past 120° over the glass, the water begins to pour into it and then
+    spills: the place it left is the lip where it first missed (tipped past 120°), not the
+    lip where it began, which lies over the glass."""
+    from skillcompose.skills.pour_geometry import POUR_TILT_MAX_RAD, pour_lip, pours_into_glass
+
+    g = over_glass(dx=SHORT)
+    began = holding()
+    pw.move_gripper_to_param(began, 0, x=g[0], y=g[1], z=g[2])
+    pw.rotate_gripper_to_param(began, 0, rho=0.0, phi=1.6, theta=0.0)
+    assert began["water"] == "glass"
+    assert pours_into_glass(began["water_left_at_world"], GLASS_RIM_WORLD)
+    bb = holding()
+    pw.move_gripper_to_param(bb, 0, x=g[0], y=g[1], z=g[2])
+    pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=2.6, theta=0.0)
+    assert bb["water"] == "spilled"
+    # the turn about y is judged every 2.6 / 50 rad: the first pose past 120° is the 41st
+    tilt = 2.6 * 41 / 50
+    assert 2.6 * 40 / 50 <= POUR_TILT_MAX_RAD < tilt
+    missed = pour_lip(g, (math.sin(tilt), 0.0, math.cos(tilt)))
+    assert bb["water_left_at_world"] == pytest.approx(missed, abs=1e-9)
+    assert math.dist(bb["water_left_at_world"], began["water_left_at_world"]) > 0.02
+
+
 def test_the_rule_follows_the_shortest_turn() -> None:
     """The path is the shortest turn between the two rotations, whatever angles name them:
     roll pi, pitch pi - 1.6, yaw pi is the rotation of pitch 1.6 alone, and pours alike."""
