@@ -120,6 +120,8 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "adaptive + neutral": {**PRESETS["adaptive"], "neutral": True},
     "adaptive + split": {**PRESETS["adaptive"], "p_split": 0.5},
     "adaptive + split always": {**PRESETS["adaptive"], "p_split": 1.0},
+    "adaptive, tournament 7": {**PRESETS["adaptive"], "tournament": 7},
+    "adaptive, population 60": {**PRESETS["adaptive"], "population": 60},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
     # candidates for one default that adapts (issue 31), made of the options there are
@@ -180,7 +182,8 @@ CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neut
               "islands + cache + restarts", "robust + cache + unique + neutral", "paper",
               "adaptive", "adaptive, patience 20", "adaptive, patience 50",
               "adaptive, growth 2", "adaptive, keep none", "adaptive + neutral",
-              "adaptive + split", "adaptive + split always")
+              "adaptive + split", "adaptive + split always", "adaptive, tournament 7",
+              "adaptive, population 60")
 """More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
 options give, for whoever turns the best into a default that adapts."""
 
