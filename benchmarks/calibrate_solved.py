@@ -155,8 +155,9 @@ def report(rows: list[Row], args: argparse.Namespace, started: str, load_before:
         f"This invocation measured {measured} of the {len(rows)} runs; the others were kept "
         "from earlier invocations (`--append`), on the same machine.",
         "",
-        "EA: the default preset (`skillcompose evolve TASK` with no options: `robust` with "
-        "`require_holds`, for these noisy tasks) unless the task's row names another (every "
+        "EA: the default preset (`skillcompose evolve TASK` with no options; for these noisy "
+        "tasks `NOISY_DEFAULT`: the islands preset with `--cache --cache-refresh 3 --p-param "
+        "0.3` and `require_holds`) unless the task's row names another (every "
         "preset but `paper` has `require_holds`), on each task's own worlds as shipped. A run "
         "is *solved* when its exported FSA (simplified, as written) holds on fresh episodes: "
         "the one-sided 95 % Clopper–Pearson lower bound of its success rate reaches the "

@@ -11,7 +11,7 @@ import pytest
 
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import EvolutionConfig, RunDir, evolve
-from skillcompose.evolve.config import PRESETS, preset_settings
+from skillcompose.evolve.config import NOISY_DEFAULT, PRESETS, preset_settings
 from skillcompose.evolve.errors import EvolutionConfigError
 from skillcompose.task import Task, TaskError, load_task
 from skillcompose.testing import assert_success_rate
@@ -90,7 +90,8 @@ def test_the_paper_preset_is_table_1_and_the_others_require_holds() -> None:
     for name in ("robust", "islands", "noisy", "deterministic", "adaptive", "push"):
         assert PRESETS[name]["require_holds"] is True
     assert preset_settings("default", True) == PRESETS["adaptive"]
-    assert preset_settings("default", False) == PRESETS["robust"]
+    assert preset_settings("default", False) == NOISY_DEFAULT
+    assert NOISY_DEFAULT["require_holds"] is True and NOISY_DEFAULT["islands"] == 4
 
 
 def test_the_success_rate_is_checked_where_it_is_given() -> None:
