@@ -156,8 +156,8 @@ def report(rows: list[Row], args: argparse.Namespace, started: str, load_before:
         "from earlier invocations (`--append`), on the same machine.",
         "",
         "EA: the default preset (`skillcompose evolve TASK` with no options; for these noisy "
-        "tasks `NOISY_DEFAULT`: the islands preset with `--cache --cache-refresh 3 --p-param "
-        "0.3` and `require_holds`) unless the task's row names another (every "
+        "tasks `NOISY_DEFAULT`: the islands preset with `--p-param 0.3` and `require_holds`) "
+        "unless the task's row names another (every "
         "preset but `paper` has `require_holds`), on each task's own worlds as shipped. A run "
         "is *solved* when its exported FSA (simplified, as written) holds on fresh episodes: "
         "the one-sided 95 % Clopper–Pearson lower bound of its success rate reaches the "
