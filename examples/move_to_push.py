@@ -68,7 +68,9 @@ Decisions where section 4.2 is vague (kept by the skills and by this task):
   top, at least 3 cm from every edge (so its 6 × 6 cm footprint stands wholly on the top,
   and nothing else). Here the object may stand deeper than an arm reaches from the nearest
   side, and the robot may start with the table behind it: the network still sees only the
-  object's position.
+  object's position. Some base pose lets Push succeed in all but a few of these worlds
+  (``benchmarks/push_ceiling.py``, ``docs/results/push_ceiling.md``): what an FSA misses
+  there, it misses for want of finding the pose, not for want of one.
 - MoveBase fails when the base footprint at the new pose comes closer than 5 cm
   (:data:`~skillcompose.skills.move_to_push.SAFETY_M`) to the table's footprint (the
   navigation's safety distance; the paper blames most failures on the real robot on it) or
