@@ -14,7 +14,14 @@ from typing import TYPE_CHECKING, Any
 from skillcompose.arguments import add_json_option, json_output, print_json, set_hint
 from skillcompose.errors import SkillcomposeError, clip, printable
 
-from .config import DEFAULT_PRESET, PRESET_NAMES, EvolutionConfig, preset_help, preset_settings
+from .config import (
+    DEFAULT_PRESET,
+    PRESET_NAMES,
+    EvolutionConfig,
+    default_islands,
+    preset_help,
+    preset_settings,
+)
 from .config import EVALUATION_BACKENDS as BACKENDS
 from .errors import EvolutionError
 from .settings import FLAGGED, Kind, Setting
@@ -156,7 +163,12 @@ def _hold_hint(cfg: EvolutionConfig, task: Task) -> str:
 def _config(args: argparse.Namespace, deterministic: bool = False) -> EvolutionConfig:
     """The settings of the command line for a task that is ``deterministic`` or not."""
     changes = preset_settings(args.preset or DEFAULT_PRESET, deterministic)
-    changes.update(_given_settings(args))
+    given = _given_settings(args)
+    changes.update(given)
+    if (args.preset or DEFAULT_PRESET) == DEFAULT_PRESET and "islands" not in given and \
+            changes.get("islands", 1) > 1:
+        # the default's islands follow a population given without them (config.py)
+        changes["islands"] = default_islands(int(changes["population"]), changes["islands"])
     return EvolutionConfig(**changes)
 
 

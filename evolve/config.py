@@ -13,8 +13,9 @@ from typing import Any
 from .errors import EvolutionConfigError
 from .settings import MOST, SETTINGS, TOPOLOGIES
 
-__all__ = ["DEFAULT_PRESET", "MOST", "NOISY_DEFAULT", "PRESETS", "PRESET_ABOUT", "PRESET_NAMES",
-           "TOPOLOGIES", "EvolutionConfig", "preset_help", "preset_settings"]
+__all__ = ["DEFAULT_PRESET", "ISLAND_LEAST", "MOST", "NOISY_DEFAULT", "PRESETS", "PRESET_ABOUT",
+           "PRESET_NAMES", "TOPOLOGIES", "EvolutionConfig", "default_islands", "preset_help",
+           "preset_settings"]
 
 
 @dataclass(frozen=True)
@@ -307,6 +308,21 @@ def preset_settings(name: str, deterministic: bool) -> dict[str, Any]:
         return dict(PRESETS["adaptive"]) if deterministic else dict(NOISY_DEFAULT)
     return dict(PRESETS[name])
 
+
+def default_islands(population: int, most: int) -> int:
+    """How many islands the default preset splits a ``population`` given on its own into:
+    the most, up to ``most``, that split it evenly into islands of at least
+    :data:`ISLAND_LEAST` individuals; 1 (one population) when none does. So
+    ``skillcompose evolve TASK --population 50`` runs 2 islands of 25, and ``--population
+    30`` one population, where a fixed 4 islands would refuse both."""
+    for k in range(min(most, population // ISLAND_LEAST), 1, -1):
+        if population % k == 0:
+            return k
+    return 1
+
+
+ISLAND_LEAST = 20
+"""The smallest island :func:`default_islands` makes."""
 
 PRESET_NAMES = (DEFAULT_PRESET, *PRESETS)
 """Every name ``--preset`` takes."""

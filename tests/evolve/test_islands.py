@@ -184,6 +184,29 @@ def test_the_command_line_sets_islands_and_the_island_preset() -> None:
     assert PRESETS["paper"] == {}  # the paper's table 1, untouched
 
 
+def test_the_defaults_islands_follow_a_population_given_alone() -> None:
+    """A noisy task's default runs 4 islands of 150; given another population it splits it
+    into the most equal islands of 20 or more (up to 4), or keeps one population; an
+    explicit --islands or preset is taken as given."""
+    from skillcompose.evolve.config import ISLAND_LEAST, default_islands
+
+    def islands(*argv: str) -> int:
+        return _config(build_parser().parse_args(["evolve", "examples.toy_task", *argv])
+                       ).islands
+
+    assert islands() == 4 and islands("--population", "600") == 4
+    assert islands("--population", "50") == 2  # 25 each
+    assert islands("--population", "90") == 3 and islands("--population", "100") == 4
+    assert islands("--population", "30") == 1 and islands("--population", "6") == 1
+    assert islands("--population", "41") == 1  # a prime: no equal split
+    assert islands("--population", "50", "--islands", "5") == 5
+    with pytest.raises(EvolutionConfigError, match="cannot be split into 4"):
+        islands("--population", "50", "--preset", "islands")
+    for population in range(1, 2000):
+        k = default_islands(population, 4)
+        assert population % k == 0 and (k == 1 or population // k >= ISLAND_LEAST)
+
+
 _CONFIRMING = EvolutionConfig(population=40, initial_nodes=8, generations=12, islands=2,
                               elitism=1, trials=1, unique_children=True, cache=True,
                               cache_refresh=1, confirm_trials=30, confirm_rate=1.0,
