@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from examples import pour_water as ex
-from skillcompose.skills import pour_water as pw
 from skillcompose import FSA, Blackboard, CompiledFSA, State, compile_fsa, load_fsa
+from skillcompose.skills import pour_water as pw
 from skillcompose.task import Task, TaskError, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -81,7 +81,7 @@ def test_a_turn_that_pours_then_swings_away_scores_where_it_missed() -> None:
     gx, gy, gz = ex.GLASS_RIM_WORLD
     at = (gx - 0.02, gy, gz + 0.08)
     pw.move_gripper_to_param(bb, 0, x=at[0], y=at[1], z=at[2])
-    poured = Blackboard({k: bb[k] for k in bb.keys()})
+    poured = Blackboard({k: bb[k] for k in bb})
     pw.rotate_gripper_to_param(poured, 0, rho=0.0, phi=1.6, theta=0.0)
     pw.rotate_gripper_to_param(bb, 0, rho=0.0, phi=2.6, theta=0.0)
     assert poured["water"] == "glass" and bb["water"] == "spilled"
