@@ -157,16 +157,19 @@ def _random_failure(bb: Blackboard, rng: np.random.Generator) -> bool:
     return rng.random() < bb["p_fail"]
 
 
-def _water_after(bb: Blackboard, position: Vec3, rotation: Vec3) -> tuple[str, Vec3] | None:
+def _water_after(bb: Blackboard, position: Vec3,
+                 rotation: Vec3 | None = None) -> tuple[str, Vec3] | None:
     """Where the held jug's water would go if the jug moved from its pose now to
-    ``position`` and ``rotation`` (:func:`~skillcompose.skills.pour_geometry.water_after_motion`):
-    ``None`` when it stays in the jug, or when there is no held jug with water in it; else
-    where it ends and where it left
-    (:func:`~skillcompose.skills.pour_geometry.water_leaves`)."""
+    ``position`` and ``rotation`` (``None``: the rotation it has, as a move keeps it)
+    (:func:`~skillcompose.skills.pour_geometry.water_after_motion`): ``None`` when it stays
+    in the jug, or when there is no held jug with water in it; else where it ends and where
+    it left (:func:`~skillcompose.skills.pour_geometry.water_leaves`)."""
     if not bb["holding_jug"] or bb["water"] != "jug":
         return None
-    return water_leaves(bb["jug_position_world"], rpy_matrix(bb["gripper_rotation"]),
-                        position, rpy_matrix(rotation), bb["glass_position_world"])
+    now = rpy_matrix(bb["gripper_rotation"])  # a move turns nothing: one matrix for both
+    return water_leaves(bb["jug_position_world"], now, position,
+                        now if rotation is None else rpy_matrix(rotation),
+                        bb["glass_position_world"])
 
 
 def _robot_can_take(bb: Blackboard, left: tuple[str, Vec3] | None, position: Vec3,
@@ -282,7 +285,7 @@ def move_gripper_to_param(
     if bb["holding_jug"] and held_jug_hits_glass(target, bb["gripper_rotation"],
                                                  bb["glass_position_world"]):
         return "failure"
-    left = _water_after(bb, target, bb["gripper_rotation"])
+    left = _water_after(bb, target)
     if not _robot_can_take(bb, left, target, bb["gripper_rotation"]):
         return "failure"
     bb["gripper_position_world"] = target
