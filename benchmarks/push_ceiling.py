@@ -86,11 +86,9 @@ def pose_exists(world: dict[str, Any], cells: np.ndarray, headings: int) -> bool
 
     ox, oy, _ = world["object_position_world"]
     table = world["table_world"]
-    # nearest first: a pose close to the object is the likeliest to be clear of nothing
-    order = np.argsort(np.hypot(cells[:, 0], cells[:, 1]))
     for yaw in np.linspace(-math.pi, math.pi, headings, endpoint=False):
         c, s = math.cos(yaw), math.sin(yaw)
-        for x, y in cells[order]:
+        for x, y in cells:
             pose = (ox - (c * x - s * y), oy - (s * x + c * y), float(yaw))
             if base_in_room(pose, ROOM_HALF_M) and not base_hits_table(pose, table, SAFETY_M):
                 return True
