@@ -32,7 +32,7 @@ import numpy as np
 from skillcompose import FSA, save_fsa
 from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.robustness import SweepRow, plot_sweep, robustness_sweep, write_csv
-from skillcompose.task import load_task
+from skillcompose.task import Task, load_task
 
 TASK = "examples.pour_water"
 REFERENCE = Path(__file__).resolve().parents[1] / "examples" / "pour_water_reference.fsa.yaml"
@@ -81,6 +81,12 @@ class Run:
         return self.solved_rate_evolved, "evolved", self.fsa_evolved
 
 
+def _pour_rate(task: Task, fsa: FSA, episodes: int) -> float:
+    """The share of ``episodes`` (seed 10,000) of ``task``'s backend in which ``fsa`` pours."""
+    scores = [t.fitness for t in task.each_trial(task.compile(fsa), 10_000, episodes)]
+    return sum(f == 0.0 for f in scores) / episodes
+
+
 def run_config(
     name: str, cfg: EvolutionConfig, seeds: Sequence[int], check_reps: int
 ) -> list[Run]:
@@ -93,12 +99,8 @@ def run_config(
         (row,) = robustness_sweep(r.best_fsa, TASK, [0.2], reps=check_reps, seed=10_000)
         (row_evolved,) = robustness_sweep(r.evolved_fsa, TASK, [0.2], reps=check_reps,
                                           seed=10_000)
-        pr2_scores = [t.fitness for t in pr2.each_trial(pr2.compile(r.best_fsa), 10_000,
-                                                        PR2_EPISODES)]
-        pr2_rate = sum(f == 0.0 for f in pr2_scores) / PR2_EPISODES
-        dynamic_scores = [t.fitness for t in dynamic.each_trial(
-            dynamic.compile(r.best_fsa), 10_000, DYNAMIC_EPISODES)]
-        dynamic_rate = sum(f == 0.0 for f in dynamic_scores) / DYNAMIC_EPISODES
+        pr2_rate = _pour_rate(pr2, r.best_fsa, PR2_EPISODES)
+        dynamic_rate = _pour_rate(dynamic, r.best_fsa, DYNAMIC_EPISODES)
         runs.append(Run(
             seed=seed, solved=r.solved, generations=r.generations, evaluations=r.evaluations,
             wall_time=r.wall_time, states_evolved=len(r.evolved_fsa.states),
