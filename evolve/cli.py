@@ -162,14 +162,19 @@ def _hold_hint(cfg: EvolutionConfig, task: Task) -> str:
 
 def _config(args: argparse.Namespace, deterministic: bool = False) -> EvolutionConfig:
     """The settings of the command line for a task that is ``deterministic`` or not."""
-    changes = preset_settings(args.preset or DEFAULT_PRESET, deterministic)
     given = _given_settings(args)
-    changes.update(given)
-    if (args.preset or DEFAULT_PRESET) == DEFAULT_PRESET and "islands" not in given and \
-            changes.get("islands", 1) > 1:
-        # the default's islands follow a population given without them (config.py)
-        changes["islands"] = default_islands(int(changes["population"]), changes["islands"])
-    return EvolutionConfig(**changes)
+    return EvolutionConfig(**{**_preset(args.preset, deterministic, given), **given})
+
+
+def _preset(name: str | None, deterministic: bool, given: dict[str, Any]) -> dict[str, Any]:
+    """The settings of preset ``name`` (None: the default) for a task that is
+    ``deterministic`` or not, beside the settings ``given`` on the command line: the
+    default's islands follow a population given without them (config.py)."""
+    settings = dict(preset_settings(name or DEFAULT_PRESET, deterministic))
+    if (name or DEFAULT_PRESET) == DEFAULT_PRESET and "islands" not in given and \
+            "population" in given and settings.get("islands", 1) > 1:
+        settings["islands"] = default_islands(int(given["population"]), settings["islands"])
+    return settings
 
 
 def _given_settings(args: argparse.Namespace) -> dict[str, Any]:
@@ -210,12 +215,14 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         differs("--seed-fsa", args.seed_fsa, record["seed_fsa"])
     if args.preset is not None:  # default: either of what it resolves to (the task is not
         # imported before the run's options are found to agree)
-        choices = [preset_settings(args.preset, d) for d in (False, True)]
+        given = _given_settings(args)
+        choices = [_preset(args.preset, d, given) for d in (False, True)]
         found: list[list[str]] = []  # the problems of each choice
         for settings in choices:
             before = len(problems)
             for name, value in settings.items():
-                differs(f"--preset {args.preset}: {name} =", value, cfg.get(name))
+                if name not in given:  # a setting given beside it is checked below
+                    differs(f"--preset {args.preset}: {name} =", value, cfg.get(name))
             found.append(problems[before:])
             del problems[before:]
         problems.extend(min(found, key=lambda p: len(list(p))))

@@ -207,6 +207,26 @@ def test_the_defaults_islands_follow_a_population_given_alone() -> None:
         assert population % k == 0 and (k == 1 or population // k >= ISLAND_LEAST)
 
 
+def test_a_resume_with_the_default_preset_keeps_its_islands(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run of the default preset with --population 50 has 2 islands; resuming it with
+    --preset default and the same settings is not a change (the islands follow the
+    population, as when it started), while another population is."""
+    from skillcompose.cli import main
+
+    d = tmp_path / "run"
+    assert main(["evolve", "examples.toy_task", "--population", "50", "--generations", "1",
+                 "--initial-nodes", "4", "--out", str(d), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["evolve", "--resume", str(d), "--preset", "default", "--population", "50",
+                 "--initial-nodes", "4", "--generations", "2", "--quiet"]) == 0, \
+        capsys.readouterr().err
+    assert main(["evolve", "--resume", str(d), "--preset", "default", "--population", "60",
+                 "--generations", "3", "--quiet"]) == 2
+    assert "--population 60 (the run has 50)" in capsys.readouterr().err
+
+
 _CONFIRMING = EvolutionConfig(population=40, initial_nodes=8, generations=12, islands=2,
                               elitism=1, trials=1, unique_children=True, cache=True,
                               cache_refresh=1, confirm_trials=30, confirm_rate=1.0,
