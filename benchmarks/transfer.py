@@ -27,8 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from skillcompose import compile_fsa, load_fsa
+from skillcompose import Blackboard, Registry, RunResult, compile_fsa, load_fsa
 from skillcompose.executor import trial_rngs
+from skillcompose.skills.kinematic_world import REASON_KEY
 from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -141,19 +142,33 @@ def measure(exp: Experiment, backend: str, n: int, *, progress: bool = False) ->
     t0 = time.perf_counter()
     for k, rng in enumerate(trial_rngs(seed, n)):
         bb = task.setup(rng)
-        result = compiled.run(bb, rng)
+        result = compiled.run(bb, rng, trace=True)
         ok = exp.success(task.score(result, bb))
         out.successes += ok
         out.episodes += 1
         if world is not None and world.physics is not None:
             out.sim_s += world.physics.time_s
         if not ok:
-            out.failures[str(bb.get("last_failure_reason") or result.outcome)] += 1
+            out.failures[cause(result, bb, task.registry, backend)] += 1
         if progress:
             print(f"{exp.name} {backend} {k}: {'ok' if ok else 'no'}", file=sys.stderr,
                   flush=True)
     out.wall_s = time.perf_counter() - t0
     return out
+
+
+def cause(result: RunResult, bb: Blackboard, registry: Registry, backend: str) -> str:
+    """Why a traced run failed: the reason the last step that failed wrote, when its skill
+    writes one (:data:`REASON_KEY`), else that step's outcome (``failure`` of CheckSuccess,
+    say), else the run's outcome. A reason left by a step the FSA recovered from is not the
+    cause."""
+    failed = [step for step in result.trace or () if step.outcome != "success"]
+    if not failed:
+        return result.outcome
+    last = failed[-1]
+    if REASON_KEY in registry.resolve(last.skill, backend).spec.writes and bb.get(REASON_KEY):
+        return str(bb[REASON_KEY])
+    return last.outcome
 
 
 def report(results: dict[str, dict[str, Measured]], sizes: dict[str, int], total_s: float,
