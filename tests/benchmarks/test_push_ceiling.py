@@ -4,9 +4,11 @@ the classifier's reach with the base clear of the table and in the room."""
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from skillcompose.robots.collision import Box
@@ -46,5 +48,35 @@ def test_the_quick_run_writes_its_page(tmp_path: Path) -> None:
     rows = json.loads((tmp_path / "push_ceiling.json").read_text())["rows"]
     assert len(rows) == 6 and all(0 <= r["with_pose"] <= 3 for r in rows)
     assert {r["step_m"] for r in rows} == {0.1, 0.05}
+    blind = json.loads((tmp_path / "push_ceiling.json").read_text())["blind"]
+    assert 1 <= len(blind["rows"]) <= push_ceiling.BLIND_STEPS
+    assert all(0 <= r["fresh"] <= 3 and 0 <= r["network_pushed"] <= 3 for r in blind["rows"])
     text = (tmp_path / "push_ceiling.md").read_text()
     assert "Written by `benchmarks/push_ceiling.py`" in text and "## Against the targets" in text
+    assert "## Without seeing the table" in text
+
+
+def test_placements_are_tried_in_order_and_the_first_one_taken_decides() -> None:
+    """free[i, w]: MoveBase can take placement i in world w; pushed: Push then succeeds.
+    Placement 0 pushes in worlds 0-1 and fails in world 2; placement 1 is free only in
+    worlds 2-3 and pushes in both; placement 2 pushes in world 3 alone."""
+    free = np.array([[1, 1, 1, 0], [0, 0, 1, 1], [0, 0, 0, 1]], dtype=bool)
+    pushed = np.array([[1, 1, 0, 0], [0, 0, 1, 1], [0, 0, 0, 1]], dtype=bool)
+    assert push_ceiling.chain_pushes(free, pushed, [0, 1]).tolist() == [1, 1, 0, 1]
+    assert push_ceiling.chain_pushes(free, pushed, [1, 0]).tolist() == [1, 1, 1, 1]
+    # greedy: placement 0 gains 2 and loses 1, placement 1 gains 2 and loses none
+    assert push_ceiling.blind_order(free, pushed, 3) == [1, 0]  # then nothing gains
+
+
+def test_a_placement_puts_the_object_where_it_says() -> None:
+    from skillcompose.skills.move_to_push import object_in_robot_frame
+
+    world = {"base_pose_world": (1.0, -0.5, 2.0), "object_position_world": (0.2, 0.3, 0.8)}
+    place = (0.7, -0.2, math.radians(30), 0.1, "right")
+    pose = push_ceiling.placement_pose(world, place)
+    x, y, _ = object_in_robot_frame(pose, world["object_position_world"])
+    assert (x, y) == pytest.approx((0.7, -0.2))
+    # turned 30 degrees from the line the robot saw the object on
+    rx, ry, _ = object_in_robot_frame(world["base_pose_world"], world["object_position_world"])
+    assert math.remainder(pose[2] - 2.0 - math.atan2(ry, rx) - math.radians(30),
+                          2 * math.pi) == pytest.approx(0.0)
