@@ -28,33 +28,57 @@ def _reach(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "fail
     return "success"
 
 
+@skill(name="Grasp", writes=(REASON_KEY,))
+def _grasp(bb: Blackboard, rng: np.random.Generator) -> Literal["success"]:
+    """Succeeds, noting a fallback it took (a reason that is no failure)."""
+    bb[REASON_KEY] = "joint_limits"
+    return "success"
+
+
+@skill(name="Stuck", writes=(REASON_KEY,))
+def _stuck(bb: Blackboard, rng: np.random.Generator) -> Literal["failure"]:
+    """Always fails, always for the same reason."""
+    bb[REASON_KEY] = "unreachable"
+    return "failure"
+
+
 @skill(name="Check", reads=("ok",))
 def _check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """The task's judge: fails unless ``ok``; writes no reason."""
     return "success" if bb.get("ok") else "failure"
 
 
-_FSA = """
-format: 1
-start: A
-states:
-  A: {skill: Reach, transitions: {success: C, failure: %s}}
-  C: {skill: Check, transitions: {success: success, failure: failure}}
-"""
-
-
-def _cause(on_failure: str, bb: Blackboard) -> str:
+def _cause(states: str, bb: Blackboard) -> str:
     registry = Registry()
-    registry.add(_reach)
-    registry.add(_check)
-    compiled = compile_fsa(loads_fsa(_FSA % on_failure), registry)
-    result = compiled.run(bb, 0, trace=True)
-    return transfer.cause(result, bb, registry, "default")
+    for s in (_reach, _grasp, _stuck, _check):
+        registry.add(s)
+    text = "format: 1\nstart: A\nstep_limit: 6\nstates:\n" + states
+    result = compile_fsa(loads_fsa(text), registry).run(bb, 0, trace=True)
+    return transfer.cause(result, bb)
+
+
+_JUDGE = "  C: {skill: Check, transitions: {success: success, failure: failure}}\n"
 
 
 def test_a_reason_the_fsa_recovered_from_is_not_the_cause() -> None:
+    retry = "  A: {skill: Reach, transitions: {success: C, failure: A}}\n" + _JUDGE
     bb = Blackboard({"tried": False})
-    assert _cause("A", bb) == "failure"  # Reach retried, then the judge failed
+    assert _cause(retry, bb) == "failure"  # Reach retried, then the judge failed
     assert bb[REASON_KEY] == "collision"  # left behind by the recovered step
-    assert _cause("failure", Blackboard({"tried": False})) == "collision"  # Reach ended it
-    assert _cause("A", Blackboard({"tried": True})) == "failure"  # only the judge failed
+    ended = "  A: {skill: Reach, transitions: {success: C, failure: failure}}\n" + _JUDGE
+    assert _cause(ended, Blackboard({"tried": False})) == "collision"  # Reach ended it
+    assert _cause(retry, Blackboard({"tried": True})) == "failure"  # only the judge failed
+
+
+def test_a_reason_written_by_a_step_that_went_on_is_not_the_cause() -> None:
+    went_on = "  A: {skill: Grasp, transitions: {success: C}}\n" + _JUDGE
+    bb = Blackboard()
+    assert _cause(went_on, bb) == "failure" and bb[REASON_KEY] == "joint_limits"
+
+
+def test_a_state_failing_until_the_step_limit_gives_its_reason() -> None:
+    stuck = "  A: {skill: Stuck, transitions: {failure: A}}\n"
+    assert _cause(stuck, Blackboard()) == "unreachable"
+    judged = ("  A: {skill: Check, transitions: {success: success, failure: B}}\n"
+              "  B: {skill: Check, transitions: {success: success, failure: A}}\n")
+    assert _cause(judged, Blackboard()) == "timeout"  # no reason at all
