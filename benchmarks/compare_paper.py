@@ -324,7 +324,9 @@ def report(rows: list[Row], command: str, started: str, load_before: str, load_a
         "Written by `benchmarks/compare_paper.py`; every number below was measured by it. "
         "Do not edit by hand: rerun the script.",
         "",
-        f"Command: `{command}` (rows kept across `--append` runs; this one started {started}).  ",
+        f"Command: `{command}` (rows kept across `--append` runs; this one started {started}"
+        + ("; it measured nothing, only wrote this page again from the saved rows"
+           if "--report-only" in command else "") + ").  ",
         f"Machine: {os.cpu_count()} CPUs, {platform.machine()}, Python "
         f"{platform.python_version()}; load average before {load_before}, after {load_after} "
         f"(the machine is shared: wall times move with its load). This invocation: "
@@ -368,6 +370,10 @@ def report(rows: list[Row], command: str, started: str, load_before: str, load_a
         if sel:
             lines += [f"## {title}", "", about, "", *_table(sel, world), ""]
     lines += ["## Targets (issue: paper worlds, our best preset)", "", *_targets(rows), "",
+              "Where the push runs fall short: `docs/results/push_ceiling.md` measures, on "
+              "the same paper worlds, how often a pose exists at all, what an FSA that never "
+              "sees the table could reach with exact moves, and how far one move of the "
+              "paper's network, fitted to such a placement, lands from it.", "",
               "## Every run", "", *_per_run(rows), ""]
     return "\n".join(lines)
 
