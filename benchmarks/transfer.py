@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from skillcompose import Blackboard, RunResult, compile_fsa, load_fsa
+from skillcompose import Blackboard, Registry, RunResult, compile_fsa, load_fsa
 from skillcompose.executor import trial_rngs
 from skillcompose.skills.kinematic_world import REASON_KEY
 from skillcompose.task import Task, load_task
@@ -149,7 +149,7 @@ def measure(exp: Experiment, backend: str, n: int, *, progress: bool = False) ->
         if world is not None and world.physics is not None:
             out.sim_s += world.physics.time_s
         if not ok:
-            out.failures[cause(result, bb)] += 1
+            out.failures[cause(result, bb, task.registry, backend)] += 1
         if progress:
             print(f"{exp.name} {backend} {k}: {'ok' if ok else 'no'}", file=sys.stderr,
                   flush=True)
@@ -157,23 +157,28 @@ def measure(exp: Experiment, backend: str, n: int, *, progress: bool = False) ->
     return out
 
 
-def cause(result: RunResult, bb: Blackboard) -> str:
-    """Why a traced run failed. The reason (:data:`REASON_KEY`) when a step that failed
-    wrote it last and every failure after it was the same state failing again (a reason
-    written by a step that went on, or by one the FSA recovered from, is not the cause);
-    else the last failing step's outcome (``failure`` of CheckSuccess, say), ``timeout``
-    when the step limit ended the run."""
+def cause(result: RunResult, bb: Blackboard, registry: Registry, backend: str) -> str:
+    """Why a traced run failed: the reason (:data:`REASON_KEY`) when the last step that
+    failed gave it, else that step's outcome (``failure`` of CheckSuccess, say), or
+    ``timeout`` when the step limit ended the run. The last failing step gave the reason when
+    its skill writes one (rewriting the same reason changes nothing a trace can see), or when
+    a failing step wrote it last and only that state failed after it (a nested FSA failing
+    again and again). A reason noted by a step that went on, or by one the FSA recovered
+    from, is not the cause."""
     steps = result.trace or ()
     failed = [i for i, step in enumerate(steps) if step.outcome != "success"]
     if not failed:
         return result.outcome
-    written = [i for i, step in enumerate(steps) if REASON_KEY in step.changes]
-    if written and bb.get(REASON_KEY):
-        w = written[-1]
-        if steps[w].outcome != "success" and \
-                all(steps[i].state == steps[w].state for i in failed if i >= w):
+    last = steps[failed[-1]]
+    if bb.get(REASON_KEY):
+        if REASON_KEY in registry.resolve(last.skill, backend).spec.writes:
             return str(bb[REASON_KEY])
-    return "timeout" if result.outcome == "timeout" else steps[failed[-1]].outcome
+        written = [i for i, step in enumerate(steps) if REASON_KEY in step.changes]
+        if written and steps[written[-1]].outcome != "success" and \
+                all(steps[i].state == steps[written[-1]].state for i in failed
+                    if i >= written[-1]):
+            return str(bb[REASON_KEY])
+    return "timeout" if result.outcome == "timeout" else last.outcome
 
 
 def report(results: dict[str, dict[str, Measured]], sizes: dict[str, int], total_s: float,

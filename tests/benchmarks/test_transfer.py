@@ -42,6 +42,13 @@ def _stuck(bb: Blackboard, rng: np.random.Generator) -> Literal["failure"]:
     return "failure"
 
 
+@skill(name="Bump", writes=(REASON_KEY,))
+def _bump(bb: Blackboard, rng: np.random.Generator) -> Literal["failure"]:
+    """Always fails by collision: Reach's reason again, a write no trace shows."""
+    bb[REASON_KEY] = "collision"
+    return "failure"
+
+
 @skill(name="Check", reads=("ok",))
 def _check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "failure"]:
     """The task's judge: fails unless ``ok``; writes no reason."""
@@ -50,11 +57,11 @@ def _check(bb: Blackboard, rng: np.random.Generator) -> Literal["success", "fail
 
 def _cause(states: str, bb: Blackboard) -> str:
     registry = Registry()
-    for s in (_reach, _grasp, _stuck, _check):
+    for s in (_reach, _grasp, _stuck, _bump, _check):
         registry.add(s)
     text = "format: 1\nstart: A\nstep_limit: 6\nstates:\n" + states
     result = compile_fsa(loads_fsa(text), registry).run(bb, 0, trace=True)
-    return transfer.cause(result, bb)
+    return transfer.cause(result, bb, registry, "default")
 
 
 _JUDGE = "  C: {skill: Check, transitions: {success: success, failure: failure}}\n"
@@ -74,6 +81,15 @@ def test_a_reason_written_by_a_step_that_went_on_is_not_the_cause() -> None:
     went_on = "  A: {skill: Grasp, transitions: {success: C}}\n" + _JUDGE
     bb = Blackboard()
     assert _cause(went_on, bb) == "failure" and bb[REASON_KEY] == "joint_limits"
+
+
+def test_a_skill_that_writes_reasons_gives_the_one_it_rewrote() -> None:
+    """Reach fails with collision and is recovered from; a later skill then fails writing
+    a reason of its own, another or the same: that reason is the cause either way."""
+    for last, reason in (("Stuck", "unreachable"), ("Bump", "collision")):
+        again = ("  A: {skill: Reach, transitions: {success: B, failure: A}}\n"
+                 f"  B: {{skill: {last}, transitions: {{failure: failure}}}}\n")
+        assert _cause(again, Blackboard({"tried": False})) == reason
 
 
 def test_a_state_failing_until_the_step_limit_gives_its_reason() -> None:
