@@ -57,19 +57,20 @@ class Case:
 
 CASES = {
     "toy": Case("toy", "examples.toy_task", {"p_fail": 0.3}, 200,
-                "the fetch-and-place toy task, p_fail 0.3"),
+                "the fetch-and-place toy task, p_fail 0.3, 200 generations"),
     "pour_water": Case("pour_water", "examples.pour_water", {"p_fail": 0.2}, 500,
                        "pouring water (§4.1), p_fail 0.2, the task's world (the pouring "
                        "rule measured against MuJoCo, the jug a body that cannot enter the "
                        "glass, `reach=pr2`), 500 generations, required rate 0.99"),
     "move_to_push": Case("move_to_push", "examples.move_to_push", {}, 400,
                          "moving to push (§4.2), the layered network, today's (facing) "
-                         "worlds, `--preset push` (its documented preset, chosen before "
-                         "this calibration: with the default, `NOISY_DEFAULT`, `skillcompose "
-                         "evolve examples.move_to_push --seed 0 --generations 300` does not "
-                         "solve)", preset="push"),
+                         "worlds, 400 generations, `--preset push` (its documented preset, "
+                         "chosen before this calibration: with the default, `NOISY_DEFAULT`, "
+                         "`skillcompose evolve examples.move_to_push --seed 0 --generations "
+                         "300` does not solve)", preset="push"),
     "stacking": Case("stacking", "examples.stacking", {}, 300,
-                     "stacking (§4.3), the shipped MoveToReach, today's (facing) worlds"),
+                     "stacking (§4.3), the shipped MoveToReach, today's (facing) worlds, "
+                     "300 generations"),
 }
 
 
