@@ -403,8 +403,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "",
         "## The evolved file on the PR2 model",
         "",
-        f"The best file (`move_to_push_best.fsa.yaml`, shipped as "
-        f"`examples/move_to_reach.fsa.yaml`: {best.topology} network, seed {best.seed}, "
+        "The best file (`move_to_push_best.fsa.yaml`"
+        + (", shipped as `examples/move_to_reach.fsa.yaml`" if args.ship else
+           "; `examples/move_to_reach.fsa.yaml`, the shipped file, is written only with "
+           "`--ship`")
+        + f": {best.topology} network, seed {best.seed}, "
         f"{variant}, {len(best_fsa.states)} states, success {best.best_variant[0]:.3f} on "
         f"fresh abstract worlds) ran unchanged with `--set backend=kinematic` on "
         f"{len(placements)} placements drawn as the paper tested on the robot (object at most "
