@@ -93,20 +93,25 @@ def reachable_cells(z: float, step: float) -> np.ndarray:
     return np.column_stack([gx[found], gy[found]])
 
 
+def base_fits(pose: tuple[float, float, float], world: dict[str, Any]) -> bool:
+    """Whether MoveBase can take ``pose`` in ``world``: the base's footprint in the room
+    and at least the safety distance from the table's (the skill's own rule)."""
+    from examples.move_to_push import ROOM_HALF_M
+    from skillcompose.skills.move_to_push import SAFETY_M, base_hits_table, base_in_room
+
+    return base_in_room(pose, ROOM_HALF_M) and \
+        not base_hits_table(pose, world["table_world"], SAFETY_M)
+
+
 def pose_exists(world: dict[str, Any], cells: np.ndarray, headings: int) -> bool:
     """Whether a base pose puts the object at one of ``cells`` (robot frame) with the base
     clear of the table (by the safety distance) and in the room, at one of ``headings``
     evenly spaced headings."""
-    from examples.move_to_push import ROOM_HALF_M
-    from skillcompose.skills.move_to_push import SAFETY_M, base_hits_table, base_in_room
-
     ox, oy, _ = world["object_position_world"]
-    table = world["table_world"]
     for yaw in np.linspace(-math.pi, math.pi, headings, endpoint=False):
         c, s = math.cos(yaw), math.sin(yaw)
         for x, y in cells:
-            pose = (ox - (c * x - s * y), oy - (s * x + c * y), float(yaw))
-            if base_in_room(pose, ROOM_HALF_M) and not base_hits_table(pose, table, SAFETY_M):
+            if base_fits((ox - (c * x - s * y), oy - (s * x + c * y), float(yaw)), world):
                 return True
     return False
 
@@ -172,14 +177,7 @@ def blind_outcomes(worlds: list[dict[str, Any]],
     """For each placement and world: whether MoveBase can take it (``free``: the base
     clear of the table by the safety distance and in the room) and whether Push then
     succeeds (``pushed``: the classifier labels the object reachable with its arm)."""
-    from examples.move_to_push import ROOM_HALF_M
-    from skillcompose.skills.move_to_push import (
-        ARM_CODES,
-        SAFETY_M,
-        _classifier,
-        base_hits_table,
-        base_in_room,
-    )
+    from skillcompose.skills.move_to_push import ARM_CODES, _classifier
 
     free = np.zeros((len(places), len(worlds)), dtype=bool)
     pushed = np.zeros_like(free)
@@ -187,9 +185,7 @@ def blind_outcomes(worlds: list[dict[str, Any]],
     for j, world in enumerate(worlds):
         z = float(world["object_position_world"][2])
         for i, place in enumerate(places):
-            pose = placement_pose(world, place)
-            free[i, j] = base_in_room(pose, ROOM_HALF_M) and \
-                not base_hits_table(pose, world["table_world"], SAFETY_M)
+            free[i, j] = base_fits(placement_pose(world, place), world)
         rows = np.array([[p[0], p[1], z, math.atan2(p[1], p[0]), p[3]] for p in places])
         pushed[:, j] = free[:, j] & (_classifier().predict(rows) == arms)
     return free, pushed
@@ -303,16 +299,8 @@ def refining_chain(worlds: list[dict[str, Any]],
     """Networks fitted to ``place`` one after another, each on the worlds where the ones
     before it moved the robot (a MoveBase that fails leaves the chain for Push), from where
     they left it: a MoveBase after a MoveBase. Each with its fit's error."""
-    from examples.move_to_push import ROOM_HALF_M
-    from skillcompose.skills.move_to_push import (
-        SAFETY_M,
-        base_goal,
-        base_hits_table,
-        base_in_room,
-        network_inputs,
-        object_in_robot_frame,
-    )
-    from skillcompose.skills.network import make_network
+    from skillcompose import Blackboard
+    from skillcompose.skills.move_to_push import network_goal
 
     fits = []
     rng = np.random.default_rng(0)  # the layered network draws nothing
@@ -321,15 +309,14 @@ def refining_chain(worlds: list[dict[str, Any]],
             break
         weights, error = fit_network(worlds, place)
         fits.append((weights, error))
-        net = make_network("layered", weights)
         moved = []
-        for w in worlds:
-            (pose, _, _) = base_goal(net(network_inputs(object_in_robot_frame(
-                w["base_pose_world"], w["object_position_world"]), 0.0), rng),
-                w["base_pose_world"])
-            if base_in_room(pose, ROOM_HALF_M) and \
-                    not base_hits_table(pose, w["table_world"], SAFETY_M):
-                moved.append({**w, "base_pose_world": pose})
+        for w in worlds:  # where MoveBase's own rule sends the robot, if it may go there
+            goal = network_goal(Blackboard({
+                "object_location_world": w["object_position_world"],
+                "base_pose_world": w["base_pose_world"], "table_world": w["table_world"]}),
+                rng, "layered", weights)
+            if not isinstance(goal, str) and base_fits(goal[0], w):
+                moved.append({**w, "base_pose_world": goal[0]})
         worlds = moved
     return fits
 

@@ -198,6 +198,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
     from .resume import FREE_SETTINGS, normalise
 
     cfg = record["config"]
+    given = _given_settings(args)
     problems: list[str] = []
 
     def differs(option: str, value: Any, recorded: Any, sep: str = " ") -> None:
@@ -215,7 +216,6 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         differs("--seed-fsa", args.seed_fsa, record["seed_fsa"])
     if args.preset is not None:  # default: either of what it resolves to (the task is not
         # imported before the run's options are found to agree)
-        given = _given_settings(args)
         choices = [_preset(args.preset, d, given) for d in (False, True)]
         found: list[list[str]] = []  # the problems of each choice
         for settings in choices:
@@ -235,7 +235,7 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         problems.append(f"--out {args.out} (the run's directory is {args.resume})")
     flags = {s.name: s.flag for s in FLAGGED}
-    for name, value in _given_settings(args).items():
+    for name, value in given.items():
         if name in FREE_SETTINGS:
             continue
         if name == "eval_time_limit":  # None is `--eval-time-limit 0`: no limit
