@@ -83,6 +83,7 @@ class EvolutionConfig:
     restart_keep: int | None = None
     unique_children: bool = False
     neutral: bool = False
+    pairs: bool = False
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 2
@@ -227,6 +228,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "restart_patience": 100,
         "restart_growth": 4,
         "population_max": 1920,
+        "pairs": True,
     },
     "push": {
         "population": 150,
@@ -277,9 +279,12 @@ stalls, as IPOP-CMA-ES restarts (Auger and Hansen 2005): it starts with 30 indiv
 when the best has not improved for 100 generations (``restart_patience``) it restarts
 from fresh random FSAs around its two best, four times larger (30, 120, 480, then 1920, the
 cap, at every later restart). A small population solves the easy representations of a task
-cheaply; a hard one (the Santa Fe ant with a sensing skill) stalls and gets the large
-population it needs. Chosen with ``benchmarks/bench_search.py`` on the tuning tasks and seeds
-of issue 31 (docs/evolve.md, "One default that adapts").
+cheaply; a hard one stalls and gets the large population it needs. It also places pairs
+(``pairs``: each action that only reports ``done`` followed by each sensing decision, as one
+skill), so that a task written with sensing skills apart from its actions (the Santa Fe ant
+with ``FoodAhead``) is searched as one whose actions report what they sense; a task with no
+such skills runs as without. Chosen with ``benchmarks/bench_search.py`` on the tuning tasks
+and seeds of issue 31 (docs/evolve.md, "One default that adapts").
 
 Every preset but ``paper`` has ``require_holds``: a run is solved when its exported FSA holds
 on fresh episodes at the required success rate (see :mod:`skillcompose.evolve.holds`).
@@ -338,7 +343,8 @@ PRESET_ABOUT = {
     "deterministic": "a small population that evolves long, for tasks whose fitness never "
                      "changes",
     "adaptive": "the deterministic preset, restarted with a population four times larger "
-                "whenever its best stalls",
+                "whenever its best stalls, each action followed by a decision offered as one "
+                "skill",
     "push": "for many parameters, such as a network's weights",
 }
 """What each preset is for, in one line; its settings are :data:`PRESETS`'."""

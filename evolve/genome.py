@@ -41,6 +41,13 @@ class SkillChoice:
     params: tuple[ParamSpec, ...]
     fixed: tuple[int | None, ...] = ()
     """Per outcome: the terminal code it always ends in (a terminating skill), or None."""
+    then: SkillChoice | None = None
+    """A pair (see :meth:`SkillSet.from_task`'s ``pairs``): this choice's skill (an action,
+    whose parameters the node holds), then the decision ``then``, whose outcomes and fixed
+    edges the node's are; the action's fixed outcomes end the run as its own would."""
+    act: SkillChoice | None = None
+    """A pair's action as a plain choice: its outcomes, one of which goes on to ``then``
+    (the others are fixed: they end the run)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "genes", sum(p.genes for p in self.params))
@@ -49,6 +56,11 @@ class SkillChoice:
     genes: int = dataclasses.field(init=False, repr=False, compare=False)
     """How many numbers in [0, 1] a node of this skill holds (a vector counts its length)."""
     _scalar: bool = dataclasses.field(init=False, repr=False, compare=False)
+
+    @property
+    def label(self) -> str:
+        """How the choice is named to a person: the skill, or ``Act+Decide`` for a pair."""
+        return self.name if self.then is None else f"{self.name}+{self.then.name}"
 
     def fixed_edge(self, outcome_index: int) -> int | None:
         return self.fixed[outcome_index] if self.fixed else None
@@ -82,25 +94,32 @@ class SkillSet:
 
     def __init__(
         self, choices: Iterable[SkillChoice], terminals: tuple[str, ...] = ("success", "failure"),
-        free_terminals: bool = True,
+        free_terminals: bool = True, pairs: bool = False,
     ) -> None:
-        self.choices = tuple(choices)
+        base = tuple(choices)
         self.terminals = tuple(terminals)
         self.free_terminals = free_terminals
-        self.index = {c.name: k for k, c in enumerate(self.choices)}
+        self.pairs = pairs
+        self.choices = base + (pair_choices(base) if pairs else ())
+        self.index = {c.name: k for k, c in enumerate(self.choices) if c.then is None}
         if not self.choices:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
         # the most nodes a genome may hold: what an FSA file holds and reads back (its
         # states, and its values: a state's name, skill, parameters (a vector counts its
         # items) and transitions, the rest of the file (its meta, the run's record) within
-        # _FILE_RESERVE), so that every FSA evolution exports loads again
-        per_node = max(6 + 2 * len(c.outcomes) + sum(
-            2 + (p.size or 0) for p in c.params) for c in self.choices)
-        self.max_nodes = max(1, min(MAX_STATES, (MAX_VALUES - _FILE_RESERVE) // per_node))
+        # _FILE_RESERVE), so that every FSA evolution exports loads again; a pair's node is
+        # two states
+        per_node = max(_values(c) + (_values(c.then) if c.then is not None else 0)
+                       for c in self.choices)
+        states = MAX_STATES // (2 if len(self.choices) > len(base) else 1)
+        self.max_nodes = max(1, min(states, (MAX_VALUES - _FILE_RESERVE) // per_node))
 
     @classmethod
-    def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None) -> SkillSet:
-        """The task's skills; ``terminals`` default to the task's own (``Task.terminals``)."""
+    def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None,
+                  pairs: bool = False) -> SkillSet:
+        """The task's skills; ``terminals`` default to the task's own (``Task.terminals``).
+        With ``pairs``, each action followed by each decision is one more choice
+        (:func:`pair_choices`)."""
         terminals = tuple(task.terminals if terminals is None else terminals)
         bad = [t for t in terminals if not isinstance(t, str) or not t.isidentifier()
                or t in RESERVED_OUTCOMES]
@@ -126,14 +145,54 @@ class SkillSet:
                     f"task {task.name}: terminal_skills {unknown} are not among the skills "
                     f"evolution may place {list(task.skill_names())}"
                 )
-        return cls(choices, terminals, free_terminals=enders is None)
+        return cls(choices, terminals, free_terminals=enders is None, pairs=pairs)
 
     def __len__(self) -> int:
         return len(self.choices)
 
+    @property
+    def shape(self) -> tuple[tuple[str, ...], bool]:
+        """What a worker passes to :meth:`from_task` besides the task to build the same
+        skill set: ``(terminals, pairs)``."""
+        return self.terminals, self.pairs
+
     def terminal_code(self, outcome: str) -> int:
         """The edge code of a terminal outcome: ``-(k + 1)`` for the ``k``-th terminal."""
         return -(self.terminals.index(outcome) + 1)
+
+
+def _values(c: SkillChoice) -> int:
+    """The values one state of ``c``'s skill takes in an FSA file (see ``max_nodes``)."""
+    return 6 + 2 * len(c.outcomes) + sum(2 + (p.size or 0) for p in c.params)
+
+
+def is_action(c: SkillChoice) -> bool:
+    """Whether ``c`` is an action in the sense of :func:`pair_choices`: a skill with exactly
+    one outcome that does not end the run, so that what follows it cannot depend on it."""
+    return c.then is None and sum(c.fixed_edge(o) is None for o in range(len(c.outcomes))) == 1
+
+
+def is_decision(c: SkillChoice) -> bool:
+    """Whether ``c`` is a decision in the sense of :func:`pair_choices`: a skill without
+    parameters with two or more outcomes that do not end the run (a sensor's yes / no)."""
+    return c.then is None and c.genes == 0 and \
+        sum(c.fixed_edge(o) is None for o in range(len(c.outcomes))) >= 2
+
+
+def pair_choices(choices: Sequence[SkillChoice]) -> tuple[SkillChoice, ...]:
+    """Each action of ``choices`` followed by each decision, as one choice ("act, then
+    decide"): a task written with sensing skills apart from actions that only report
+    ``done`` (Koza's ant) gets the building block that a task whose actions report what
+    they sense (Jefferson's ant) has in every state, while the plain skills stay choices
+    too. A pair's node is exported as two plain states, the action's then the decision's,
+    so the file uses the task's own skills. None when the task has no actions or no
+    decisions (every skill of a task whose actions report has two outcomes, so it gets no
+    pairs)."""
+    acts = [c for c in choices if is_action(c)]
+    decisions = [c for c in choices if is_decision(c)]
+    return tuple(
+        SkillChoice(a.name, d.outcomes, a.params, d.fixed, then=d, act=a)
+        for a in acts for d in decisions)
 
 
 class Node:
@@ -301,19 +360,34 @@ class Genome:
 
         States are named ``Skill_N`` (the node id), in breadth-first order from the start.
         """
+        states = {name: st for name, st, _, _ in self.states(skills)}
+        return FSA(states, self.state_name(self.start, skills), skills.terminals, step_limit,
+                   name, dict(meta or {}))
+
+    def states(self, skills: SkillSet) -> list[tuple[str, State, int, int]]:
+        """The FSA's states, in breadth-first order of the nodes from the start: ``(name,
+        state, choice index, part)``, ``part`` 0 for a node's own state and 1 for the
+        decision of a pair (:func:`pair_choices`), which follows its action as a state of
+        its own, ``Decision_N``."""
         order = self.reachable()
         names = {k: self.state_name(k, skills) for k in order}
-        states: dict[str, State] = {}
+        terminals = skills.terminals
+        out: list[tuple[str, State, int, int]] = []
         for k in order:
             n = self.nodes[k]
             c = skills.choices[n.skill]
             params = c.decode(n.params)
-            tr = {
-                o: (names[t] if t >= 0 else skills.terminals[-t - 1])
-                for o, t in zip(c.outcomes, n.edges, strict=True)
-            }
-            states[names[k]] = State(c.name, params, tr)
-        return FSA(states, names[self.start], skills.terminals, step_limit, name, dict(meta or {}))
+            tr = {o: (names[t] if t >= 0 else terminals[-t - 1])
+                  for o, t in zip(c.outcomes, n.edges, strict=True)}
+            if c.then is None or c.act is None:
+                out.append((names[k], State(c.name, params, tr), n.skill, 0))
+                continue
+            then = f"{c.then.name}_{k}"
+            act = {o: (then if (f := c.act.fixed_edge(i)) is None else terminals[-f - 1])
+                   for i, o in enumerate(c.act.outcomes)}
+            out.append((names[k], State(c.name, params, act), n.skill, 0))
+            out.append((then, State(c.then.name, {}, tr), n.skill, 1))
+        return out
 
     @classmethod
     def from_fsa(cls, fsa: FSA, skills: SkillSet, where: str = "") -> Genome:
@@ -416,27 +490,18 @@ class GenomeCompiler:
         self.skills = skills
         self.backend = task.backend or reg.backend
         self.step_limit = step_limit if step_limit is not None else task.step_limit
-        self._impls: list[Skill] = [reg.resolve(c.name, self.backend) for c in skills.choices]
+        self._impls: list[tuple[Skill, ...]] = [
+            (reg.resolve(c.name, self.backend),) if c.then is None else
+            (reg.resolve(c.name, self.backend), reg.resolve(c.then.name, self.backend))
+            for c in skills.choices]
 
     def fsa(self, g: Genome, **kw: Any) -> FSA:
         return g.to_fsa(self.skills, step_limit=self.step_limit, **kw)
 
     def compile(self, g: Genome) -> CompiledFSA:
-        skills = self.skills
-        order = g.reachable()
-        terminals = skills.terminals
-        names = [f"{skills.choices[g.nodes[k].skill].name}_{k}" for k in order]
-        index = {k: names[i] for i, k in enumerate(order)}
-        states: dict[str, State] = {}
-        impls: list[tuple[Skill, dict[str, Any]]] = []
-        for i, k in enumerate(order):
-            n = g.nodes[k]
-            c = skills.choices[n.skill]
-            kwargs = c.decode(n.params)
-            states[names[i]] = State(c.name, kwargs, {
-                o: (index[t] if t >= 0 else terminals[-t - 1])
-                for o, t in zip(c.outcomes, n.edges, strict=True)
-            })
-            impls.append((self._impls[n.skill], kwargs))
-        fsa = FSA.trusted(states, names[0], terminals, self.step_limit)  # valid by construction
+        expanded = g.states(self.skills)
+        states = {name: st for name, st, _, _ in expanded}
+        impls = [(self._impls[k][part], st.params) for _, st, k, part in expanded]
+        fsa = FSA.trusted(states, expanded[0][0], self.skills.terminals,
+                          self.step_limit)  # valid by construction
         return CompiledFSA(fsa, impls, self.backend)

@@ -47,12 +47,12 @@ _RECYCLE = "recycle"
 
 
 def _init_worker(
-    source: TaskRef | Task, terminals: tuple[str, ...]
+    source: TaskRef | Task, shape: tuple[tuple[str, ...], bool]
 ) -> tuple[Task, GenomeCompiler]:
     """The task and its genome compiler, built once per worker process from the task's
     module and settings, and held by the worker's loop (no module global)."""
     task = source.build() if isinstance(source, TaskRef) else source
-    return task, GenomeCompiler(task, SkillSet.from_task(task, terminals))
+    return task, GenomeCompiler(task, SkillSet.from_task(task, *shape))
 
 
 def _chunk_size(left: int, total: int, workers: int, streaming: bool) -> int:
@@ -133,7 +133,8 @@ _PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 
 
 def _worker_main(
-    conn: Connection, source: TaskRef | Task, terminals: tuple[str, ...], cpu: int | None,
+    conn: Connection, source: TaskRef | Task, shape: tuple[tuple[str, ...], bool],
+    cpu: int | None,
     counter: Any, shared: _Shared, slot: int, limits: EvalLimits, parent_pid: int = 0,
     inherited: Sequence[int] = (), nice: int = 0,
 ) -> None:
@@ -160,7 +161,7 @@ def _worker_main(
         with contextlib.suppress(OSError, AttributeError):
             os.nice(nice)
     try:
-        task, compiler = _init_worker(source, terminals)
+        task, compiler = _init_worker(source, shape)
     except BaseException:
         conn.send(("failed", traceback.format_exc()))
         return
@@ -234,7 +235,7 @@ class ProcessEvaluator:
     ) -> None:
         self.task = task
         self.workers = workers or os.cpu_count() or 1
-        self.terminals = skills.terminals
+        self.shape = skills.shape
         self.limits = limits or EvalLimits()
         self.pin = pin
         self.nice = nice
@@ -281,7 +282,7 @@ class ProcessEvaluator:
                                         if not w.conn.closed)]
         proc = self._ctx.Process(
             target=_worker_main,
-            args=(child, self._source, self.terminals, cpu, self._counter, self._shared,
+            args=(child, self._source, self.shape, cpu, self._counter, self._shared,
                   slot, self.limits, os.getpid(),
                   inherited if self._ctx.get_start_method() == "fork" else [], self.nice),
             daemon=True,

@@ -130,7 +130,7 @@ class RayEvaluator:
         self.limits = limits or EvalLimits()
         self.start_timeout = start_timeout
         self._actor_cls = ray.remote(num_cpus=1, scheduling_strategy="SPREAD")(_RayWorker)
-        self._terminals = skills.terminals
+        self._shape = skills.shape
         self._actors: list[_Actor] = []
         self._starting: dict[Any, Any] = {}  # ready ref -> actor handle
         self.lost = 0
@@ -164,7 +164,7 @@ class RayEvaluator:
 
     def _start_actor(self) -> None:
         handle: Any = self._actor_cls.remote(
-            self._ref, self._terminals, self.limits, self._key if self.direct else None,
+            self._ref, self._shape, self.limits, self._key if self.direct else None,
             self._home)
         self._starting[handle.ready.remote()] = handle
 
@@ -575,11 +575,12 @@ class _Generation:
 
 class _RayWorker:
     def __init__(
-        self, ref: TaskRef, terminals: tuple[str, ...], limits: EvalLimits, key: bytes | None,
+        self, ref: TaskRef, shape: tuple[tuple[str, ...], bool], limits: EvalLimits,
+        key: bytes | None,
         home: str,
     ) -> None:
         self.task = ref.build()
-        self.compiler = GenomeCompiler(self.task, SkillSet.from_task(self.task, terminals))
+        self.compiler = GenomeCompiler(self.task, SkillSet.from_task(self.task, *shape))
         self.guard = Guard(limits.time_limit).install()
         self.recycler = _Recycler(limits)
         self._key = key

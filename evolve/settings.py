@@ -325,6 +325,13 @@ SETTINGS: tuple[Setting, ...] = (
             more="The search drifts across genomes of equal fitness instead of keeping the "
             "first one found, as in the (1 + lambda) evolution strategy of Cartesian genetic "
             "programming."),
+    Setting("pairs", Kind.SWITCH, "each action (a skill with one outcome that goes on) "
+            "followed by each decision (a skill without parameters with two or more) is one "
+            "more skill evolution may place, exported as the two plain states",
+            flag="--pairs",
+            more="A task written with sensing skills apart from actions that only report "
+            "done gets the building block that a task whose actions report what they sense "
+            "has in every state."),
     # -- faults and limits ----------------------------------------------------------------
     Setting("eval_time_limit", Kind.REAL, "wall-clock limit of one evaluation (all its "
             "trials); past it, it scores the task's worst and counts as a time-out",
