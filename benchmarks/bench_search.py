@@ -88,6 +88,8 @@ class Bench:
     individuals: int = 0  # when set: each setting's budget, generations = this // M
     other_form: str = ""  # the benchmark of the same task in its other representation
     candidates: tuple[str, ...] = ()  # more settings, measured only when --config names them
+    holds: bool = False  # "solved" as the presets say it (the exported FSA holds), not the
+    # page's older "an evaluation at the target and its confirmation"
 
 
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -145,6 +147,9 @@ tasks; between them, what each mechanism adds on its own."""
 # docs/results/search.md was measured with "solved" as an evaluation at the target (and its
 # confirmation), before the presets asked the exported FSA to hold; the same here, so that
 # the report stays what this script writes (docs/results/solved.md measures the new one)
+HOLDS_CONFIGS = dict(CONFIGS)
+"""The settings as their presets give them: "solved" means the exported FSA holds (issue 27),
+for the sections that say so (``Bench.holds``)."""
 CONFIGS = {name: {**settings, "require_holds": False} for name, settings in CONFIGS.items()}
 
 DEFAULT = "default"
@@ -284,6 +289,15 @@ BENCHES = (
         "confirmation.",
         fresh=1000),
     Bench(
+        "dock (noisy), solved means it holds", "benchmarks.tasks.dock", {}, 300,
+        (50_000, 150_000), (DEFAULT, "robust", "islands", "noisy"),
+        "Our docking robot as above, with \"solved\" as every preset but `paper` now says it "
+        "(issue 27): the exported FSA docks on fresh episodes with a one-sided 95 % lower "
+        "bound of at least the task's required rate (0.9), a run that is not solved using "
+        "its 300 generations; both fresh columns are 1000 more fresh episodes, of the FSA "
+        "as evolved and as exported.",
+        fresh=1000, holds=True),
+    Bench(
         "pour water (noisy)", "examples.pour_water", {"p_fail": 0.2}, 2000,
         (50_000, 150_000), ("robust", "islands", "islands + cache refresh",
                               "islands + cache refresh + parameter noise",
@@ -338,11 +352,14 @@ class _Spent(Exception):
     """A run whose population grows has processed its budget in individuals."""
 
 
-def config_settings(config: str, deterministic: bool) -> dict[str, Any]:
-    """The evolution settings named ``config`` for a task that is ``deterministic`` or not."""
+def config_settings(config: str, deterministic: bool, holds: bool = False) -> dict[str, Any]:
+    """The evolution settings named ``config`` for a task that is ``deterministic`` or not;
+    with ``holds``, "solved" as the presets say it (the exported FSA holds), else the page's
+    older "solved" (an evaluation at the target and its confirmation)."""
     if config == DEFAULT:
-        return {**preset_settings("default", deterministic), "require_holds": False}
-    return CONFIGS[config]
+        settings = preset_settings("default", deterministic)
+        return settings if holds else {**settings, "require_holds": False}
+    return HOLDS_CONFIGS[config] if holds else CONFIGS[config]
 
 
 def budget(bench: Bench, config: str, population: int | None) -> int:
@@ -359,7 +376,7 @@ def run_one(bench: Bench, config: str, seed: int, generations: int,
             population: int | None) -> RunResult:
     """One serial evolution run."""
     task = load_task(bench.module, **bench.settings)
-    cfg = EvolutionConfig(**{**config_settings(config, task.deterministic),
+    cfg = EvolutionConfig(**{**config_settings(config, task.deterministic, bench.holds),
                              "generations": generations})
     if population is not None:
         cfg = cfg.replace(population=population,
@@ -383,17 +400,22 @@ def run_one(bench: Bench, config: str, seed: int, generations: int,
             wall=time.perf_counter() - t0, population=cfg.population,
             curve=_curve(records, task.minimize), sizes=[r.population for r in records])
     wall = time.perf_counter() - t0
-    simplified = None
+    simplified = evolved = None
     if bench.fresh:  # what `skillcompose evolve` exports: simplified (after the timing)
         fsa = simplify(task, r.best_fsa, seed=seed, time_limit=cfg.eval_time_limit)
         simplified = check_fresh(task, fsa, seed, bench.fresh,
                                  cfg.eval_time_limit)["success_rate"]
+        # a run solved by the holds test reports that test's episodes; the column is the
+        # evolved FSA on the same fresh episodes as the simplified one's
+        evolved = check_fresh(task, r.best_fsa, seed, bench.fresh,
+                              cfg.eval_time_limit)["success_rate"] if bench.holds else None
     curve = _curve(r.history, task.minimize)
     return RunResult(
         bench=bench.name, config=config, seed=seed, solved=r.solved,
         solved_at=r.generations if r.solved else None, generations=r.generations,
         episodes=r.evaluations, wall=wall, population=cfg.population, curve=curve,
-        fresh_rate=r.fresh.get("success_rate") if r.fresh else None,
+        fresh_rate=evolved if bench.holds else
+        r.fresh.get("success_rate") if r.fresh else None,
         fresh_rate_simplified=simplified,
         sizes=[h.population for h in r.history] if cfg.restart_patience else [],
     )
@@ -843,10 +865,16 @@ def seeds_note(seeds: Sequence[int]) -> str:
             "these figures may flatter them.")
 
 
+def held_out(bench: Bench) -> bool:
+    """Whether ``bench`` measures a task of :data:`HELD_OUT_TASKS` (a section of its own,
+    such as the docking robot with the holds test, is the same task)."""
+    return any(bench.name == t or bench.name.startswith(f"{t}, ") for t in HELD_OUT_TASKS)
+
+
 def held_out_note(bench: Bench, seeds: Sequence[int]) -> str:
     """What a section says of its task and seeds: held out from tuning, or not."""
     task = ("Held-out task: no settings were chosen on it, and none will be. "
-            if bench.name in HELD_OUT_TASKS else "")
+            if held_out(bench) else "")
     return task + seeds_note(seeds)
 
 
@@ -879,7 +907,7 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
     Santa Fe trail written with a sensing skill; below plain GP's published figure; at most
     twice the effort of the same settings on the task's other representation; on a noisy
     task, the default against the head's (``robust``)."""
-    if not bench.other_form and bench.configs != ISSUE_31 and bench.name not in HELD_OUT_TASKS:
+    if not bench.other_form and bench.configs != ISSUE_31 and not held_out(bench):
         return []
     by = {r.config: r for r in results[bench.name]}
     out = []

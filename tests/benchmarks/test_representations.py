@@ -151,3 +151,20 @@ def test_the_issue_31_targets_read_both_representations() -> None:
     assert lines[2].startswith("- default: at most twice the effort of the ant, Santa Fe "
                                "trail, reporting section (360): **no**")
     assert math.isinf(bench_search.koza_effort([None], 30, 5)[0])
+    # one form measured alone: its twice-the-other target is said to be unchecked, not hidden
+    alone = bench_search.form_targets(bench, {bench.name: results[bench.name]})
+    assert alone[-1].startswith("- default: at most twice the effort of the ant, Santa Fe "
+                                "trail, reporting section: **not checked**")
+    assert "--only 'ant, Santa Fe trail, '" in alone[-1]
+
+
+def test_the_docking_robot_is_also_measured_with_solved_meaning_it_holds() -> None:
+    holds = next(b for b in bench_search.BENCHES if b.holds)
+    assert holds.module == "benchmarks.tasks.dock" and holds.fresh > 0
+    assert bench_search.held_out(holds)  # the same held-out task, a section of its own
+    assert bench_search.held_out_note(holds, [1000]).startswith("Held-out task")
+    assert not any(bench_search.held_out(b) for b in bench_search.BENCHES
+                   if b.name.startswith("ant, John Muir trail, reporting"))
+    for config in holds.configs:  # every preset's own "solved", the page's older one elsewhere
+        assert bench_search.config_settings(config, False, holds=True)["require_holds"]
+        assert not bench_search.config_settings(config, False)["require_holds"]
