@@ -57,6 +57,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # the task modules under benchmarks/tasks, run from anywhere
     sys.path.insert(0, str(ROOT))
 
+from skillcompose.arguments import output_dir  # noqa: E402
 from skillcompose.evolve import (  # noqa: E402
     PRESETS,
     EvolutionConfig,
@@ -967,7 +968,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--config", action="append", default=[], metavar="NAME",
                    help="only these settings (repeatable; names as in the tables, e.g. "
                         "'deterministic + neutral'), where a benchmark compares them")
-    p.add_argument("--out", default=None,
+    p.add_argument("--out", type=output_dir, default=None,
                    help="output folder (default docs/results; --quick needs one)")
     p.add_argument("--merge-from", metavar="PAGE", default=None,
                    help="measure nothing: put the sections that the run which wrote PAGE "

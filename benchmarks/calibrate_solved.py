@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from skillcompose.arguments import output_folder
 from skillcompose.evolve import check_fresh, evolve
 from skillcompose.stats import estimate
 from skillcompose.task import load_task
@@ -235,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="generation budget of every run (default: each task's)")
     p.add_argument("--quick", action="store_true",
                    help="2 seeds of the toy task, 200 new episodes: a smoke run")
-    p.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    p.add_argument("--out", type=output_folder, default=ROOT / "docs" / "results")
     p.add_argument("--append", action="store_true",
                    help="keep the runs already in OUT/solved_runs.json and run only the others")
     p.add_argument("--redo", nargs="+", choices=list(CASES), default=[], metavar="TASK",

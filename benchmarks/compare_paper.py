@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from skillcompose import FSA, save_fsa
+from skillcompose.arguments import output_dir
 from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.executor import trial_rngs
 from skillcompose.stats import estimate
@@ -409,7 +410,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true",
                    help="2 seeds, 3 generations (table 1) or 9,000 episodes (ours), 50 fresh "
                         "episodes, 10 PR2-model ones: checks the script, measures nothing")
-    p.add_argument("--out", default=str(ROOT / "docs" / "results"))
+    p.add_argument("--out", type=output_dir, default=str(ROOT / "docs" / "results"))
     p.add_argument("--report-only", action="store_true",
                    help="write the report again from the rows in paper_comparison.json; run "
                         "nothing (for a comparison stopped part-way: the report says which "

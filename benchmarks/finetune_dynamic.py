@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from skillcompose import compile_fsa, load_fsa, save_fsa
+from skillcompose.arguments import output_folder
 from skillcompose.evolve import EvolutionConfig, evolve
 from skillcompose.executor import trial_rngs
 from skillcompose.task import load_task
@@ -346,7 +347,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--judged", type=int, help="judged worlds per FSA (default: the "
                    "experiment's own)")
     p.add_argument("--quick", action="store_true", help="tiny sizes, a look at the report")
-    p.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    p.add_argument("--out", type=output_folder, default=ROOT / "docs" / "results")
     p.add_argument("--report-only", action="store_true",
                    help="rewrite finetune_dynamic.md from the .json in --out; run nothing")
     return p

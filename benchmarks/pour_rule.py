@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from skillcompose.arguments import output_folder
 from skillcompose.files import atomic_write
 from skillcompose.skills import pour_geometry as pg
 from skillcompose.stats import rate_bounds
@@ -212,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--poses", type=int, default=300, help="poses per sample")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    parser.add_argument("--out", type=output_folder, default=ROOT / "docs" / "results")
     args = parser.parse_args(argv)
     if args.poses < 1 or args.workers < 1:
         parser.error("--poses and --workers: expected at least 1")

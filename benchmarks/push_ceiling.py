@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from skillcompose.arguments import output_dir
 from skillcompose.files import atomic_write
 from skillcompose.stats import rate_bounds
 
@@ -483,7 +484,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="grid step in the robot frame [m] (0.04; also half of it)")
     p.add_argument("--headings", type=int, default=36,
                    help="headings searched (36; also twice as many)")
-    p.add_argument("--out", default=None, help="output folder (default docs/results)")
+    p.add_argument("--out", type=output_dir, default=None,
+                   help="output folder (default docs/results)")
     args = p.parse_args(argv)
     if args.worlds < 1 or args.headings < 1 or not 0.0 < args.step <= 0.5:
         p.error("--worlds and --headings must be at least 1, --step in (0, 0.5] m")

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from skillcompose import FSA, compile_fsa, load_fsa, save_fsa
+from skillcompose.arguments import output_dir
 from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.executor import trial_rngs
 from skillcompose.task import Task, load_task
@@ -276,7 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--runs-dir", default=None, help="keep each run's directory here")
     p.add_argument("--ship", action="store_true",
                    help="also write the best file to examples/move_to_reach.fsa.yaml")
-    p.add_argument("--out", default=str(ROOT / "docs" / "results"),
+    p.add_argument("--out", type=output_dir, default=str(ROOT / "docs" / "results"),
                    help="output folder (default docs/results)")
     p.add_argument("--picture-only", action="store_true",
                    help="only redraw move_to_push_robot.png from the move_to_push_best.fsa.yaml "

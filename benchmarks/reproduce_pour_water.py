@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from skillcompose import FSA, save_fsa
+from skillcompose.arguments import output_dir
 from skillcompose.evolve import EvolutionConfig, evolve
 from skillcompose.evolve.config import preset_settings
 from skillcompose.robustness import SweepRow, plot_sweep, robustness_sweep, write_csv
@@ -301,8 +302,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="fresh runs to check each evolved FSA at p_fail 0.2 (default 1000)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="processes for the sweeps (evolution runs stay serial)")
-    p.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" /
-                                        "results"), help="output folder (default docs/results)")
+    p.add_argument("--out", type=output_dir,
+                   default=str(Path(__file__).resolve().parents[1] / "docs" / "results"),
+                   help="output folder (default docs/results)")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
     seeds = list(range(args.seeds))

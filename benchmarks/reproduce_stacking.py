@@ -36,6 +36,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from skillcompose import FSA, compile_fsa, load_fsa, save_fsa
+from skillcompose.arguments import output_folder
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
 from skillcompose.executor import trial_rngs
@@ -211,7 +212,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--check", type=int, default=1000, help="fresh worlds per evolved FSA")
     p.add_argument("--reps", type=int, default=3000, help="runs per p_fail in figure 12")
     p.add_argument("--scenes", type=int, default=100, help="kinematic scenes")
-    p.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    p.add_argument("--out", type=output_folder, default=ROOT / "docs" / "results")
     p.add_argument("--picture-only", action="store_true",
                    help="only redraw stacking_robot.png from the stacking_best.fsa.yaml already "
                    "in --out (the same scene the report's caption names); nothing is evolved")

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from skillcompose import Blackboard, Registry, RunResult, compile_fsa, load_fsa
+from skillcompose.arguments import output_folder
 from skillcompose.executor import trial_rngs
 from skillcompose.skills.kinematic_world import REASON_KEY
 from skillcompose.task import Task, load_task
@@ -233,7 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for key, exp in EXPERIMENTS.items():
         p.add_argument(f"--{key}", type=int, default=exp.default_n,
                        help=f"worlds per backend for {key} (default {exp.default_n}; 0 skips)")
-    p.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    p.add_argument("--out", type=output_folder, default=ROOT / "docs" / "results")
     p.add_argument("--progress", action="store_true", help="a line per episode on stderr")
     p.add_argument("--report-only", action="store_true",
                    help="rewrite transfer.md from the transfer.json in --out; run nothing")

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from skillcompose import load_fsa
+from skillcompose.arguments import output_folder
 from skillcompose.files import atomic_write
 from skillcompose.skills.dynamic_world import world_of
 from skillcompose.task import load_task
@@ -214,7 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=100, help="episodes per FSA and backend")
     parser.add_argument("--seed", type=int, default=0, help="seed of the episodes")
     parser.add_argument("--backends", nargs="+", choices=BACKENDS, default=list(BACKENDS))
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    parser.add_argument("--out", type=output_folder, default=ROOT / "docs" / "results")
     parser.add_argument("--evolve-physics", type=int, default=None, metavar="SEED",
                         help="first evolve the reach=physics FSA with this seed (writes "
                              "docs/results/pour_water_physics.fsa.yaml; tens of minutes)")

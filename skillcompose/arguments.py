@@ -203,6 +203,12 @@ def output_dir(text: str) -> str:
     return text
 
 
+def output_folder(text: str) -> Path:
+    """:func:`output_dir` as a :class:`~pathlib.Path` (for ``type=`` of an ``--out`` whose
+    default is a path)."""
+    return Path(output_dir(text))
+
+
 def existing_dir(text: str) -> str:
     """A directory that exists."""
     if not Path(text).is_dir():
