@@ -931,6 +931,11 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
                            f"settings in this run; measure both: `--only '{task}, '`)")
             continue
         them = other[name].effort
+        if math.isinf(them) and math.isinf(row.effort):  # inf <= inf would pass it
+            out.append(f"- {name}: at most twice the effort of the {bench.other_form} "
+                       "section: **not measurable** (neither form was solved within the "
+                       "budget)")
+            continue
         ratio = row.effort / them if math.isfinite(them) and them > 0 else math.inf
         ok = row.effort <= 2 * them
         out.append(f"- {name}: at most twice the effort of the {bench.other_form} section "

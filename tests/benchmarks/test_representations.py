@@ -151,6 +151,11 @@ def test_the_issue_31_targets_read_both_representations() -> None:
     assert lines[2].startswith("- default: at most twice the effort of the ant, Santa Fe "
                                "trail, reporting section (360): **no**")
     assert math.isinf(bench_search.koza_effort([None], 30, 5)[0])
+    # neither form solved: the target cannot be met by two infinities
+    unsolved = {bench.name: [row("default", [None, None])],
+                bench.other_form: [row("default", [None, None])]}
+    assert bench_search.form_targets(bench, unsolved)[-1].endswith(
+        "section: **not measurable** (neither form was solved within the budget)")
     # one form measured alone: its twice-the-other target is said to be unchecked, not hidden
     alone = bench_search.form_targets(bench, {bench.name: results[bench.name]})
     assert alone[-1].startswith("- default: at most twice the effort of the ant, Santa Fe "
