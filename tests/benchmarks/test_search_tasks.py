@@ -233,3 +233,6 @@ def test_pour_water_targets_say_yes_only_when_every_one_is_met() -> None:
     assert lines[1].startswith("- good: **yes** — ")
     assert "median 71 generations" in lines[1] and "target below 132,570 (yes)" in lines[1]
     assert lines[2].startswith("- one unsolved: **no** — solved 3/4 (no)")
+    # pour water's own targets, on no other noisy task
+    dock = next(b for b in bench_search.BENCHES if b.module == "benchmarks.tasks.dock")
+    assert bench_search.targets(dock, rows, 100) == []
