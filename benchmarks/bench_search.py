@@ -1002,11 +1002,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.quick and args.out is None:
         p.error("--quick measures nothing worth keeping: give --out DIR (not docs/results)")
     args.out = args.out or str(ROOT / "docs" / "results")
-    try:  # before the runs, so that a wrong --out loses no measurement
-        Path(args.out).mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        p.error(f"--out {args.out}: cannot make the folder ({e.strerror}); give a folder, "
-                "the page is written there as search.md")
     benches = [b for b in BENCHES if args.full or not b.full_only]
     if args.only:
         benches = [b for b in benches if any(s in b.name for s in args.only)]
@@ -1049,7 +1044,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                      for c in b.configs] for b in benches}
     text = report(rows, benches, args, time.perf_counter() - t0, (load0, os.getloadavg()),
                   generations, seeds)
-    out = Path(args.out)
+    out = Path(args.out)  # checked as it was parsed (output_dir), before the runs
+    out.mkdir(parents=True, exist_ok=True)
     page = out / "search.md"
     if args.only and not args.quick and page.exists():
         text = merge_page(page.read_text(encoding="utf-8"), text,

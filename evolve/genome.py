@@ -57,11 +57,6 @@ class SkillChoice:
     """How many numbers in [0, 1] a node of this skill holds (a vector counts its length)."""
     _scalar: bool = dataclasses.field(init=False, repr=False, compare=False)
 
-    @property
-    def label(self) -> str:
-        """How the choice is named to a person: the skill, or ``Act+Decide`` for a pair."""
-        return self.name if self.then is None else f"{self.name}+{self.then.name}"
-
     def fixed_edge(self, outcome_index: int) -> int | None:
         return self.fixed[outcome_index] if self.fixed else None
 
@@ -166,17 +161,21 @@ def _values(c: SkillChoice) -> int:
     return 6 + 2 * len(c.outcomes) + sum(2 + (p.size or 0) for p in c.params)
 
 
+def _going_on(c: SkillChoice) -> int:
+    """How many of ``c``'s outcomes do not end the run."""
+    return sum(c.fixed_edge(o) is None for o in range(len(c.outcomes)))
+
+
 def is_action(c: SkillChoice) -> bool:
     """Whether ``c`` is an action in the sense of :func:`pair_choices`: a skill with exactly
     one outcome that does not end the run, so that what follows it cannot depend on it."""
-    return c.then is None and sum(c.fixed_edge(o) is None for o in range(len(c.outcomes))) == 1
+    return c.then is None and _going_on(c) == 1
 
 
 def is_decision(c: SkillChoice) -> bool:
     """Whether ``c`` is a decision in the sense of :func:`pair_choices`: a skill without
     parameters with two or more outcomes that do not end the run (a sensor's yes / no)."""
-    return c.then is None and c.genes == 0 and \
-        sum(c.fixed_edge(o) is None for o in range(len(c.outcomes))) >= 2
+    return c.then is None and c.genes == 0 and _going_on(c) >= 2
 
 
 def pair_choices(choices: Sequence[SkillChoice]) -> tuple[SkillChoice, ...]:

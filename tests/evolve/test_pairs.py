@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from benchmarks.tasks import ant
-from skillcompose import FSA, load_fsa, save_fsa
+from skillcompose import FSA, CompiledFSA, load_fsa, save_fsa
 from skillcompose.evolve import EvolutionConfig, evolve
 from skillcompose.evolve.genome import (
     Genome,
@@ -32,7 +32,8 @@ def sensing() -> Task:
 
 
 def labels(skills: SkillSet) -> list[str]:
-    return [c.label for c in skills.choices]
+    """Each choice's skill, or ``Act+Decide`` for a pair."""
+    return [c.name if c.then is None else f"{c.name}+{c.then.name}" for c in skills.choices]
 
 
 def test_actions_that_only_report_done_pair_with_each_sensor(sensing: Task) -> None:
@@ -105,8 +106,8 @@ def test_a_genome_of_pairs_runs_and_exports_what_the_sensing_form_runs(
         again)) in eaten
 
 
-def fsa_fitness(task: Task, compiled: object) -> float:
-    (_, fitness), = task.run_trials(compiled, 0, 1)  # type: ignore[arg-type]
+def fsa_fitness(task: Task, compiled: CompiledFSA) -> float:
+    (_, fitness), = task.run_trials(compiled, 0, 1)
     return fitness
 
 
