@@ -340,7 +340,9 @@ def test_a_dynamic_replay_steps_through_the_simulation(viewer: Viewer, runs_dir:
     label = page.page.get_by_test_id("substep-label")
     page.page.get_by_test_id("forward").click()  # step 1: RecogniseObject moves nothing
     page.page.get_by_test_id("forward").click()  # step 2: the arm moves to the jug
-    wait_for(lambda: "t = " in label.inner_text(), what="the sub-step label of step 2")
+    step = page.page.get_by_test_id("step-label")  # step 1 has a sub-step label too: wait for 2
+    wait_for(lambda: step.inner_text().startswith("step 2 of") and "t = " in label.inner_text(),
+             what="the sub-step label of step 2")
     end = label.inner_text()  # the step's last sample: "t = T s (n of n)"
     n = int(end.rsplit(" of ", 1)[1].rstrip(")"))
     assert n > 4, end  # a motion of seconds, sampled every 0.25 s
