@@ -313,6 +313,15 @@ BENCHES = (
         fresh=1000,
     ),
     Bench(
+        "pour water (noisy), solved means it holds", "examples.pour_water", {"p_fail": 0.2},
+        500, (50_000, 150_000), (DEFAULT, "robust", "islands"),
+        "The paper's section 4.1 at p_fail 0.2, with \"solved\" as every preset but `paper` "
+        "now says it (issue 27): the exported FSA pours on fresh episodes with a one-sided "
+        "95 % lower bound of at least the task's required rate (0.99), a run that is not "
+        "solved using its 500 generations (the calibration's budget, `solved.md`); both "
+        "fresh columns are 1000 more fresh episodes, of the FSA as evolved and as exported.",
+        fresh=1000, holds=True),
+    Bench(
         "move to push (many parameters)", "examples.move_to_push", {}, 816,
         (500_000, 2_000_000), ("push", "push + islands"),
         "The paper's section 4.2 with its network's weights evolved (`--preset push`).",
@@ -631,7 +640,8 @@ def targets(bench: Bench, rows: Sequence[Row], generations: int) -> list[str]:
                 figure = float(gp[1].replace(",", ""))
                 out.append(f"- {row.config}: below the published plain-GP figure "
                            f"({gp[1]}): **{'yes' if new < figure else 'no'}** ({span})")
-    if bench.module == "examples.pour_water" and "robust" in by:  # pour water's own targets
+    # pour water's own targets, set on the old "solved" (the section that keeps it)
+    if bench.module == "examples.pour_water" and not bench.holds and "robust" in by:
         gens_max, fresh_min, episodes_max = POUR_TARGETS
         out.append(f"The figures (robust, seeds 0–9: median {gens_max} generations, "
                    f"{_num(episodes_max)} episodes per run, fresh rate {fresh_min}) were "
