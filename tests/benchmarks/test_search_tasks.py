@@ -240,3 +240,30 @@ def test_pour_water_targets_say_yes_only_when_every_one_is_met() -> None:
     holds = next(b for b in bench_search.BENCHES
                  if b.module == "examples.pour_water" and b.holds)
     assert bench_search.targets(holds, rows, 100) == []
+
+
+def test_a_noisy_section_where_solved_means_it_holds_compares_the_default_with_robust() -> None:
+    """Issue 31's noisy target (no worse than the head's `robust`) is checked on every
+    section whose "solved" is the exported FSA holding, a tuning task's held-out seeds too,
+    and says no when the default spends more episodes."""
+    bench = next(b for b in bench_search.BENCHES
+                 if b.module == "examples.pour_water" and b.holds)
+
+    def runs(config: str, gens: list[int | None], episodes: int,
+             fresh: float) -> list[bench_search.RunResult]:
+        return [bench_search.RunResult(
+            bench=bench.name, config=config, seed=s, solved=g is not None, solved_at=g,
+            generations=g or 500, episodes=episodes, wall=1.0, population=600,
+            fresh_rate=fresh, curve=[(g or 500, 1.0, episodes)]) for s, g in enumerate(gens)]
+
+    def line(default: list[bench_search.RunResult]) -> str:
+        rows = [bench_search.summarise(bench, c, r, 500) for c, r in (
+            (bench_search.DEFAULT, default),
+            ("robust", runs("robust", [300, 300, None, 300], 700_000, 0.99)))]
+        return next(x for x in bench_search.form_targets(bench, {bench.name: rows})
+                    if "no worse than" in x)
+
+    assert "**yes** (solved 4 against 3" in line(
+        runs(bench_search.DEFAULT, [60, 60, 60, 60], 150_000, 0.995))
+    assert "**no** (solved 4 against 3" in line(
+        runs(bench_search.DEFAULT, [400, 400, 400, 400], 3_000_000, 0.995))
