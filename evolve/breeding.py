@@ -62,9 +62,10 @@ def _breed_island(
     restart = keep is not None
     cfg, rng, n = run.cfg, run.rng, len(population)
     sizes = [len(x) for x in population]
-    # neutral: at equal rank the newer genome (higher uid) goes first, so a child as good
-    # as the elite takes its place (neutral drift)
-    newer = [-x.origin["uid"] if cfg.neutral else 0 for x in population]
+    # neutral (or a drift stage): at equal rank the newer genome (higher uid) goes first, so
+    # a child as good as the elite takes its place (neutral drift)
+    drift = cfg.neutral or cfg.drifting(run.restarts)
+    newer = [-x.origin["uid"] if drift else 0 for x in population]
     order = sorted(range(n),
                    key=lambda i: (*run.rank_key(fitness[i], sizes[i]), newer[i], i))
     rank = [0] * n
@@ -144,8 +145,9 @@ def _kept(cfg: EvolutionConfig, whole: bool) -> int:
 
 def grows(run: RunState) -> bool:
     """Whether the next generation restarts the whole population, larger
-    (``restart_patience``): the run's best has not improved for that many generations."""
-    patience = run.cfg.restart_patience
+    (``restart_patience``): the run's best has not improved for that many generations
+    (``drift_patience`` in a drift stage)."""
+    patience = run.cfg.patience_after(run.restarts)
     return patience > 0 and bool(run.island_best) and \
         run.generation - run.island_best[0][1] >= patience
 

@@ -81,6 +81,7 @@ class EvolutionConfig:
     restart_growth: int = 1
     population_max: int | None = None
     restart_keep: int | None = None
+    drift_patience: int = 0
     unique_children: bool = False
     neutral: bool = False
     pairs: bool = False
@@ -124,7 +125,8 @@ class EvolutionConfig:
     def _restart_problems(self) -> list[str]:
         """What is wrong with the restarts of the whole population (``restart_patience``)."""
         if self.restart_patience == 0:
-            return []
+            return [f"drift_patience = {self.drift_patience} needs restart_patience (the "
+                    "growing stages it alternates with)"] if self.drift_patience else []
         problems = []
         if self.islands > 1:
             problems.append(f"restart_patience = {self.restart_patience} restarts the whole "
@@ -136,18 +138,37 @@ class EvolutionConfig:
         if self.restart_keep is not None and self.restart_keep >= self.population:
             problems.append(f"restart_keep = {self.restart_keep} must be smaller than "
                             f"population = {self.population}")
+        if self.drift_patience and self.restart_growth == 1:
+            problems.append(f"drift_patience = {self.drift_patience} alternates drift with "
+                            "growing stages, and restart_growth = 1 grows nothing; give "
+                            "restart_growth of 2 or more")
         if self.population_max is not None and self.population_max < self.population:
             problems.append(f"population_max = {self.population_max} must be at least "
                             f"population = {self.population}")
         return problems
 
+    def drifting(self, restarts: int) -> bool:
+        """Whether the stage after ``restarts`` restarts of the whole population is a drift
+        stage (``drift_patience``: every second stage, the first one never)."""
+        return self.drift_patience > 0 and restarts % 2 == 1
+
+    def patience_after(self, restarts: int) -> int:
+        """The generations without a better best after which the stage after ``restarts``
+        restarts ends in a restart: ``drift_patience`` in a drift stage, else
+        ``restart_patience``."""
+        return self.drift_patience if self.drifting(restarts) else self.restart_patience
+
     def population_after(self, restarts: int) -> int:
         """The population after ``restarts`` restarts of the whole population: ``population``
-        times ``restart_growth`` each time, at most ``population_max`` (and 1,000,000)."""
+        times ``restart_growth`` each time, at most ``population_max`` (and 1,000,000). With
+        ``drift_patience`` every second stage is a drift stage of ``population``, and only the
+        others grow."""
         most = min(self.population_max or _POPULATION_MOST, _POPULATION_MOST)
         size = self.population
-        if self.restart_growth == 1:
+        if self.restart_growth == 1 or self.drifting(restarts):
             return size
+        if self.drift_patience:
+            restarts //= 2
         for _ in range(restarts):
             if size * self.restart_growth >= most:
                 return max(size, most)

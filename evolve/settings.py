@@ -316,6 +316,14 @@ SETTINGS: tuple[Setting, ...] = (
             "whatever it keeps", low=0, high=10**6, none="the elites, at least the best",
             flag="--restart-keep", metavar="K",
             more="0 makes each restart an independent run, as IPOP-CMA-ES's are."),
+    Setting("drift_patience", Kind.WHOLE, "with {restart_patience}, every second stage is a "
+            "drift stage: {population} individuals with neutral drift, restarted when the "
+            "best has not improved for this many generations; the other stages grow",
+            low=0, high=MOST, zero="no drift stages", flag="--drift-patience", metavar="D",
+            more="Two regimes in turn, as BIPOP-CMA-ES alternates its large and small "
+            "populations (Hansen 2009): growing populations serve tasks that need many "
+            "individuals at once, a small drifting one tasks whose plateaus are long (see "
+            "{neutral}). A drift stage starts from the elites of the stage before it."),
     Setting("unique_children", Kind.SWITCH, "mutate a child again, up to 8 times, until its "
             "genome is new to the generation (and, with {cache}, to the run)",
             flag="--unique-children"),
