@@ -131,6 +131,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "adaptive, patience 400": {**PRESETS["adaptive"], "restart_patience": 400},
     "adaptive + drift 400": {**PRESETS["adaptive"], "drift_patience": 400},
     "adaptive + drift 200": {**PRESETS["adaptive"], "drift_patience": 200},
+    "adaptive + drift 800": {**PRESETS["adaptive"], "drift_patience": 800},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
     # candidates for one default that adapts (issue 31), made of the options there are
@@ -197,7 +198,7 @@ CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neut
               "adaptive + split", "adaptive + split always", "adaptive, tournament 7",
               "adaptive, population 60", "adaptive + pairs",
               "adaptive + neutral, patience 400", "adaptive, patience 400",
-              "adaptive + drift 400", "adaptive + drift 200")
+              "adaptive + drift 400", "adaptive + drift 200", "adaptive + drift 800")
 """More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
 options give, for whoever turns the best into a default that adapts."""
 

@@ -249,6 +249,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "restart_patience": 100,
         "restart_growth": 4,
         "population_max": 1920,
+        "drift_patience": 400,
         "pairs": True,
     },
     "push": {
