@@ -93,6 +93,10 @@ class Bench:
     # page's older "an evaluation at the target and its confirmation"
 
 
+_IPOP: dict[str, Any] = {k: v for k, v in PRESETS["adaptive"].items() if k != "drift_patience"}
+"""``adaptive`` before its drift stages (growing restarts alone, as IPOP's): the ``adaptive,
+...`` and ``adaptive + ...`` candidates below were measured on it."""
+
 CONFIGS: dict[str, dict[str, Any]] = {
     "paper": PRESETS["paper"],
     "robust": PRESETS["robust"],
@@ -116,22 +120,23 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "deterministic + restarts": {**PRESETS["deterministic"], "restart_after": 20},
     "deterministic + neutral": {**PRESETS["deterministic"], "neutral": True},
     "adaptive": PRESETS["adaptive"],
-    "adaptive, patience 20": {**PRESETS["adaptive"], "restart_patience": 20},
-    "adaptive, patience 50": {**PRESETS["adaptive"], "restart_patience": 50},
-    "adaptive, growth 2": {**PRESETS["adaptive"], "restart_growth": 2},
-    "adaptive, keep none": {**PRESETS["adaptive"], "restart_keep": 0},
-    "adaptive + neutral": {**PRESETS["adaptive"], "neutral": True},
-    "adaptive + split": {**PRESETS["adaptive"], "p_split": 0.5},
-    "adaptive + split always": {**PRESETS["adaptive"], "p_split": 1.0},
-    "adaptive, tournament 7": {**PRESETS["adaptive"], "tournament": 7},
-    "adaptive, population 60": {**PRESETS["adaptive"], "population": 60},
-    "adaptive + pairs": {**PRESETS["adaptive"], "pairs": True},
-    "adaptive + neutral, patience 400": {**PRESETS["adaptive"], "neutral": True,
+    "adaptive, no drift stages": _IPOP,
+    "adaptive, patience 20": {**_IPOP, "restart_patience": 20},
+    "adaptive, patience 50": {**_IPOP, "restart_patience": 50},
+    "adaptive, growth 2": {**_IPOP, "restart_growth": 2},
+    "adaptive, keep none": {**_IPOP, "restart_keep": 0},
+    "adaptive + neutral": {**_IPOP, "neutral": True},
+    "adaptive + split": {**_IPOP, "p_split": 0.5},
+    "adaptive + split always": {**_IPOP, "p_split": 1.0},
+    "adaptive, tournament 7": {**_IPOP, "tournament": 7},
+    "adaptive, population 60": {**_IPOP, "population": 60},
+    "adaptive + pairs": {**_IPOP, "pairs": True},
+    "adaptive + neutral, patience 400": {**_IPOP, "neutral": True,
                                          "restart_patience": 400},
-    "adaptive, patience 400": {**PRESETS["adaptive"], "restart_patience": 400},
-    "adaptive + drift 400": {**PRESETS["adaptive"], "drift_patience": 400},
-    "adaptive + drift 200": {**PRESETS["adaptive"], "drift_patience": 200},
-    "adaptive + drift 800": {**PRESETS["adaptive"], "drift_patience": 800},
+    "adaptive, patience 400": {**_IPOP, "restart_patience": 400},
+    "adaptive + drift 400": {**_IPOP, "drift_patience": 400},
+    "adaptive + drift 200": {**_IPOP, "drift_patience": 200},
+    "adaptive + drift 800": {**_IPOP, "drift_patience": 800},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
     # candidates for one default that adapts (issue 31), made of the options there are
@@ -198,7 +203,8 @@ CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neut
               "adaptive + split", "adaptive + split always", "adaptive, tournament 7",
               "adaptive, population 60", "adaptive + pairs",
               "adaptive + neutral, patience 400", "adaptive, patience 400",
-              "adaptive + drift 400", "adaptive + drift 200", "adaptive + drift 800")
+              "adaptive + drift 400", "adaptive + drift 200", "adaptive + drift 800",
+              "adaptive, no drift stages")
 """More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
 options give, for whoever turns the best into a default that adapts."""
 

@@ -301,7 +301,10 @@ stalls, as IPOP-CMA-ES restarts (Auger and Hansen 2005): it starts with 30 indiv
 when the best has not improved for 100 generations (``restart_patience``) it restarts
 from fresh random FSAs around its two best, four times larger (30, 120, 480, then 1920, the
 cap, at every later restart). A small population solves the easy representations of a task
-cheaply; a hard one stalls and gets the large population it needs. It also places pairs
+cheaply; a hard one stalls and gets the large population it needs. Between two growing
+stages is a drift stage (``drift_patience``, as BIPOP-CMA-ES alternates its regimes): 30
+individuals with neutral drift from the elites so far, until the best has not improved for
+400 generations, for tasks whose plateaus are long (the John Muir trail). It also places pairs
 (``pairs``: each action that only reports ``done`` followed by each sensing decision, as one
 skill), so that a task written with sensing skills apart from its actions (the Santa Fe ant
 with ``FoodAhead``) is searched as one whose actions report what they sense; a task with no
@@ -365,8 +368,8 @@ PRESET_ABOUT = {
     "deterministic": "a small population that evolves long, for tasks whose fitness never "
                      "changes",
     "adaptive": "the deterministic preset, restarted with a population four times larger "
-                "whenever its best stalls, each action followed by a decision offered as one "
-                "skill",
+                "whenever its best stalls, with drift stages of 30 between, each action "
+                "followed by a decision offered as one skill",
     "push": "for many parameters, such as a network's weights",
 }
 """What each preset is for, in one line; its settings are :data:`PRESETS`'."""
