@@ -12,7 +12,7 @@ import pytest
 
 from skillcompose.evolve import EvolutionConfig, EvolutionConfigError, EvolutionResult, evolve
 from skillcompose.evolve.cli import _config, build_parser
-from skillcompose.task import Task, load_task
+from skillcompose.task import Task
 
 DRIFTING = EvolutionConfig(population=8, initial_nodes=6, generations=30, elitism=1,
                            cache=True, unique_children=True, restart_patience=2,
@@ -23,13 +23,8 @@ QUICK: dict[str, Any] = {"simplify_result": False, "check_trials": 0}
 
 
 @pytest.fixture(scope="module")
-def task() -> Task:
-    return load_task("examples.toy_task", p_fail=0.3, tolerance=0.002)
-
-
-@pytest.fixture(scope="module")
-def straight(task: Task) -> EvolutionResult:
-    return evolve(task, DRIFTING, seed=5, **QUICK)
+def straight(toy_hard: Task) -> EvolutionResult:
+    return evolve(toy_hard, DRIFTING, seed=5, **QUICK)
 
 
 def _run(r: EvolutionResult) -> tuple[object, ...]:
@@ -50,17 +45,16 @@ def test_every_second_stage_drifts_with_the_first_size_and_its_own_patience() ->
     assert {plain.patience_after(k) for k in range(10)} == {100}
 
 
-def test_a_drift_stage_ranks_the_newer_of_two_equals_first() -> None:
+def test_a_drift_stage_ranks_the_newer_of_two_equals_first(toy_hard: Task) -> None:
     from skillcompose.evolve.breeding import breed
     from skillcompose.evolve.genome import SkillSet
     from skillcompose.evolve.operators import initialize
     from skillcompose.evolve.state import RunState
 
-    task = load_task("examples.toy_task", p_fail=0.3, tolerance=0.002)
-    skills = SkillSet.from_task(task)
+    skills = SkillSet.from_task(toy_hard)
 
     def elite(restarts: int) -> int:
-        run = RunState(task, DRIFTING, 0, skills, None, 1, {})
+        run = RunState(toy_hard, DRIFTING, 0, skills, None, 1, {})
         for _ in range(DRIFTING.population):
             g = initialize(skills, run.rng, DRIFTING.initial_nodes)
             g.origin = {"uid": run.uid()}
@@ -85,13 +79,13 @@ def test_a_drifting_run_alternates_its_stages(straight: EvolutionResult) -> None
 
 
 def test_a_drifting_run_is_the_same_on_a_pool_and_across_resume(
-        task: Task, straight: EvolutionResult, tmp_path: Path) -> None:
-    pool = evolve(task, DRIFTING, seed=5, backend="process", workers=2, **QUICK)
+        toy_hard: Task, straight: EvolutionResult, tmp_path: Path) -> None:
+    pool = evolve(toy_hard, DRIFTING, seed=5, backend="process", workers=2, **QUICK)
     assert _run(pool) == _run(straight)
     sizes = [h.population for h in straight.history]
     after = next(g for g in range(1, len(sizes)) if sizes[g] == 24) + 1  # the fourth stage
-    evolve(task, DRIFTING.replace(generations=after), seed=5, out_dir=tmp_path, **QUICK)
-    assert _run(evolve(task, DRIFTING, resume=tmp_path)) == _run(straight)
+    evolve(toy_hard, DRIFTING.replace(generations=after), seed=5, out_dir=tmp_path, **QUICK)
+    assert _run(evolve(toy_hard, DRIFTING, resume=tmp_path)) == _run(straight)
 
 
 @pytest.mark.parametrize(("changes", "message"), [
