@@ -800,7 +800,7 @@ def merge_page(old: str, new: str, measured: Sequence[str]) -> str:
                        if line.startswith(("Command:", "Machine:")))
     kept: dict[str, str] = {}
     for name in old_sections:
-        if name in new_sections:
+        if name in new_sections or any(supersedes(n, name) for n in new_sections):
             continue
         section = old_sections[name]
         if RUN_MARK not in section:
@@ -814,6 +814,25 @@ def merge_page(old: str, new: str, measured: Sequence[str]) -> str:
     body = [new_sections.get(name) or kept[name]
             for name in _ordered([*new_sections, *kept])]
     return new_head + "\n" + note + "\n" + "\n".join(body)
+
+
+def _seed_range(name: str) -> tuple[str, int, int] | None:
+    """A section name's benchmark and seeds, first and last (``None``: the seeds 0..N-1 of
+    a name without ``, seeds``)."""
+    head, sep, span = name.rpartition(", seeds ")
+    first, _, last = span.partition("–")
+    if not sep or not first.isdigit() or not (last or first).isdigit():
+        return None
+    return head, int(first), int(last or first)
+
+
+def supersedes(new: str, old: str) -> bool:
+    """Whether the section ``new`` measured every seed of the section ``old`` and more, from
+    the same first seed, of the same benchmark (``..., seeds 1000–1019`` supersedes
+    ``..., seeds 1000–1009``): the runs are deterministic, so the old section's runs are
+    among the new one's, and keeping both would show one measurement twice."""
+    a, b = _seed_range(new), _seed_range(old)
+    return a is not None and b is not None and a[:2] == b[:2] and a[2] > b[2]
 
 
 def _ordered(names: Sequence[str]) -> list[str]:

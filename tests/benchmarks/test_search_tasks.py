@@ -267,3 +267,24 @@ def test_a_noisy_section_where_solved_means_it_holds_compares_the_default_with_r
         runs(bench_search.DEFAULT, [60, 60, 60, 60], 150_000, 0.995))
     assert "**no** (solved 4 against 3" in line(
         runs(bench_search.DEFAULT, [400, 400, 400, 400], 3_000_000, 0.995))
+
+
+def test_more_seeds_from_the_same_first_seed_replace_the_shorter_section() -> None:
+    """A run of seeds 1000–1019 holds the runs of 1000–1009 (the runs are deterministic):
+    the shorter section goes, other seed ranges and benchmarks stay."""
+    short = "ant, John Muir trail, sensing, seeds 1000–1009"
+    long = "ant, John Muir trail, sensing, seeds 1000–1019"
+    assert bench_search.supersedes(long, short)
+    assert not bench_search.supersedes(short, long)
+    assert not bench_search.supersedes(long, "ant, John Muir trail, sensing, seeds 100–109")
+    assert not bench_search.supersedes(long, "ant, John Muir trail, reporting, seeds 1000–1009")
+    assert not bench_search.supersedes(long, "ant, John Muir trail, sensing")
+    old = ("# Search\n\nCommand: `x`  \nMachine: old.\n\n"
+           f"## {short}\n\n{bench_search.RUN_MARK}of then.\n\nten seeds\n\n"
+           f"## maze, sensing, seeds 1000–1009\n\n{bench_search.RUN_MARK}of then.\n\nmaze\n")
+    new = ("# Search\n\nCommand: `y`  \nMachine: new.\n\n"
+           f"## {long}\n\n{bench_search.RUN_MARK}of now.\n\ntwenty seeds\n")
+    text = bench_search.merge_page(old, new, [long])
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [
+        f"## {long}", "## maze, sensing, seeds 1000–1009"]
+    assert "ten seeds" not in text and "twenty seeds" in text
