@@ -64,6 +64,7 @@ class FreshCheck:
     timeouts: int
     seed: int
     kind: str  # "holds": the sequential test that decides "solved"; "measured": a fixed count
+    deterministic: bool = False  # the task's episodes are all the same: one was run
 
     @property
     def episodes(self) -> int:
@@ -76,7 +77,7 @@ class FreshCheck:
     def to_dict(self) -> dict[str, Any]:
         return {**self.estimate.to_dict(), "mean_fitness": self.mean_fitness,
                 "raised": self.raised, "timeouts": self.timeouts, "seed": self.seed,
-                "kind": self.kind}
+                "kind": self.kind, "deterministic": self.deterministic}
 
 
 def required_rate(task: Task, cfg: EvolutionConfig) -> float:
@@ -112,7 +113,8 @@ def holds_test(task: Task, fsa: FSA, seed: int, key: tuple[int, ...], required: 
     seq = np.random.SeedSequence(seed, spawn_key=(HOLDS_STREAM, *key))
     scores, raised, timeouts = _run(task, fsa, seq, test.max_episodes, time_limit,
                                     lambda ok: test.add(ok) is not None)
-    return FreshCheck(test.result(), _mean(scores), raised, timeouts, seed, "holds")
+    return FreshCheck(test.result(), _mean(scores), raised, timeouts, seed, "holds",
+                      task.deterministic)
 
 
 def measure_fresh(task: Task, fsa: FSA, seq: np.random.SeedSequence, episodes: int,
@@ -123,7 +125,7 @@ def measure_fresh(task: Task, fsa: FSA, seq: np.random.SeedSequence, episodes: i
     scores, raised, timeouts = _run(task, fsa, seq, episodes, time_limit, lambda ok: False)
     successes = sum(map(task.solved, scores))
     return FreshCheck(estimate(successes, len(scores), confidence, required),
-                      _mean(scores), raised, timeouts, seed, "measured")
+                      _mean(scores), raised, timeouts, seed, "measured", task.deterministic)
 
 
 def check_fresh(
@@ -143,10 +145,15 @@ def check_fresh(
 
 def describe_fresh(fresh: Mapping[str, Any]) -> str:
     """One line for a fresh check of ``run.json`` or a result: the rate, its bounds and,
-    when a rate was required, whether it holds (older runs: the rate alone)."""
+    when a rate was required, whether it holds (older runs: the rate alone). A deterministic
+    task's one episode is every episode: the line says whether it reached the target, with
+    no rate or bounds, which would read as a sample of one."""
     rate, episodes = fresh.get("success_rate"), fresh.get("episodes")
     if not isinstance(rate, (int, float)) or not isinstance(episodes, int):
         return "not measured"
+    if fresh.get("deterministic") is True and episodes == 1:
+        return ("reaches the target" if rate >= 1.0 else "does not reach the target") + \
+            " on a fresh episode (a deterministic task: every episode is the same)"
     text = f"{100 * rate:.1f} % of {episodes:,} fresh episodes reach the target"
     lower, upper = fresh.get("lower"), fresh.get("upper")
     if isinstance(lower, (int, float)) and isinstance(upper, (int, float)):

@@ -43,6 +43,10 @@ MAX_REFRESH_READ = 32 * 1024 * 1024  # new history bytes one listing of the runs
 MAX_TEXT = 300  # the longest text of a run.json value a table cell shows
 MAX_SETTINGS = 100  # task settings a run.json may hold
 MAX_VALUE = 4096  # characters of a run.json text value (a task's name, a setting)
+_FRESH_SHOWN = ("success_rate", "lower", "upper", "holds", "deterministic")
+"""The keys of a run's fresh check the runs page reads (:func:`fresh_text`)."""
+
+
 _CONFIG_SHOWN = ("population", "generations", "trials", "elitism")
 
 
@@ -257,7 +261,7 @@ def _kept(info: dict[str, Any]) -> dict[str, Any]:
         fresh = result.get("fresh")
         kept["result"] = {"best_fitness": result.get("best_fitness"),
                           "generations": result.get("generations")} | (
-            {"fresh": {k: fresh[k] for k in ("success_rate", "lower", "upper", "holds")
+            {"fresh": {k: fresh[k] for k in _FRESH_SHOWN
                        if k in fresh and isinstance(fresh[k], _SCALAR)}}
             if isinstance(fresh, dict) else {})
     return kept
@@ -324,6 +328,8 @@ def fresh_text(fresh: dict[str, Any]) -> str:
     rate = number(fresh.get("success_rate"))
     if rate is None:
         return "–"
+    if fresh.get("deterministic") is True:  # one episode is every episode: no bounds
+        return "reaches the target" if rate >= 1.0 else "does not reach the target"
     text = f"{100 * rate:.1f}%"
     lower, upper = number(fresh.get("lower")), number(fresh.get("upper"))
     if lower is not None and upper is not None:

@@ -19,6 +19,7 @@ from skillcompose import FSA, Blackboard, Registry, State, load_fsa, save_fsa, s
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import EvolutionConfig, Genome, Job, Node, SkillSet, evolve
 from skillcompose.evolve.evaluation import EvalLimits, Faults
+from skillcompose.evolve.holds import describe_fresh
 from skillcompose.evolve.pool import ProcessEvaluator
 from skillcompose.evolve.serial import SerialEvaluator
 from skillcompose.task import Task, load_task
@@ -119,6 +120,17 @@ def test_a_deterministic_task_runs_one_trial() -> None:
     assert [r.evaluations for r in result.history] == [16] * len(result.history)
     assert result.best_fsa.meta["simplified"]["trials"] == 1
     assert result.fresh["episodes"] == 1
+    # one episode is every episode: the summary gives a verdict, not a rate of a sample of one
+    assert result.fresh["deterministic"] is True
+    verdict = "reaches" if result.fresh["success_rate"] == 1.0 else "does not reach"
+    assert describe_fresh(result.fresh) == (
+        f"{verdict} the target on a fresh episode (a deterministic task: every episode is "
+        "the same)")
+    # a run.json from before the flag (or a noisy task's check of one episode): rate, bounds
+    older = {k: v for k, v in result.fresh.items() if k != "deterministic"}
+    assert describe_fresh(older).startswith(
+        f"{100 * older['success_rate']:.1f} % of 1 fresh episodes reach the target (95 % "
+        "bounds ")
 
 
 # -- item 12: a task's terminal outcomes ----------------------------------------------------

@@ -231,6 +231,11 @@ def test_the_runs_table_gives_the_fresh_rate_with_its_bounds_and_verdict() -> No
                        "holds": False}) == "7.5% (4.7–11.3) does not hold"
     assert fresh_text({"success_rate": 0.5}) == "50.0%"  # a run from before the bounds
     assert fresh_text({"success_rate": "x"}) == "–"
+    # a deterministic task's one episode is every episode: a verdict, no bounds
+    assert fresh_text({"success_rate": 1.0, "lower": 0.05, "upper": 1.0, "holds": True,
+                       "deterministic": True}) == "reaches the target"
+    assert fresh_text({"success_rate": 0.0, "lower": 0.0, "upper": 0.95, "holds": False,
+                       "deterministic": True}) == "does not reach the target"
 
 
 def test_the_live_patrol_runs_by_its_path_from_any_folder(tmp_path: Path) -> None:
