@@ -137,6 +137,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "adaptive + drift 400": {**_IPOP, "drift_patience": 400},
     "adaptive + drift 200": {**_IPOP, "drift_patience": 200},
     "adaptive + drift 800": {**_IPOP, "drift_patience": 800},
+    "adaptive + pairs only": {**PRESETS["adaptive"], "pairs_only": True},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
     # candidates for one default that adapts (issue 31), made of the options there are
@@ -204,7 +205,7 @@ CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neut
               "adaptive, population 60", "adaptive + pairs",
               "adaptive + neutral, patience 400", "adaptive, patience 400",
               "adaptive + drift 400", "adaptive + drift 200", "adaptive + drift 800",
-              "adaptive, no drift stages")
+              "adaptive, no drift stages", "adaptive + pairs only")
 """More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
 options give, for whoever turns the best into a default that adapts."""
 
@@ -342,6 +343,13 @@ BENCHES = (
         "The paper's section 4.2 with its network's weights evolved (`--preset push`).",
         fresh=1000, full_only=True,
     ),
+    Bench(
+        "move to push, solved means it holds", "examples.move_to_push", {}, 0,
+        (100_000, 500_000), (DEFAULT, "robust", "push"),
+        _holds("The paper's section 4.2 in the task's default world (`facing`), the "
+               "network's weights evolved, each setting given the individuals of 816 "
+               "generations of `push`'s 150", "pushes", 0.9, "budget (122,400 individuals)"),
+        fresh=1000, full_only=True, holds=True, individuals=122_400),
 )
 
 

@@ -85,6 +85,7 @@ class EvolutionConfig:
     unique_children: bool = False
     neutral: bool = False
     pairs: bool = False
+    pairs_only: bool = False
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 2
@@ -117,6 +118,9 @@ class EvolutionConfig:
                 problems.append(f"migrants = {self.migrants} must be smaller than an island "
                                 f"({size} individuals)")
         problems += self._restart_problems() if not problems else []
+        if self.pairs_only and not self.pairs:
+            problems.append("pairs_only = True draws pairs in place of the actions they "
+                            "cover, and pairs = False places none; give pairs = True")
         if problems:
             raise EvolutionConfigError(
                 "invalid evolution settings: " + "; ".join(problems)

@@ -20,6 +20,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from skillcompose import FSA, CompiledFSA, ParamSpec, Skill, State
 from skillcompose.errors import one_line
 from skillcompose.fsa import RESERVED_OUTCOMES
@@ -89,13 +91,19 @@ class SkillSet:
 
     def __init__(
         self, choices: Iterable[SkillChoice], terminals: tuple[str, ...] = ("success", "failure"),
-        free_terminals: bool = True, pairs: bool = False,
+        free_terminals: bool = True, pairs: bool = False, pairs_only: bool = False,
     ) -> None:
         base = tuple(choices)
         self.terminals = tuple(terminals)
         self.free_terminals = free_terminals
         self.pairs = pairs
         self.choices = base + (pair_choices(base) if pairs else ())
+        # what a random node may be (:meth:`draw`): every choice, or with ``pairs_only`` all
+        # but the actions a pair covers; the others stay choices, for seed files and names
+        covered = {c.act.name for c in self.choices if c.act is not None} if pairs_only \
+            else set()
+        self.drawable = tuple(k for k, c in enumerate(self.choices)
+                              if c.then is not None or c.name not in covered)
         self.index = {c.name: k for k, c in enumerate(self.choices) if c.then is None}
         if not self.choices:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
@@ -111,10 +119,11 @@ class SkillSet:
 
     @classmethod
     def from_task(cls, task: Task, terminals: tuple[str, ...] | None = None,
-                  pairs: bool = False) -> SkillSet:
+                  pairs: bool = False, pairs_only: bool = False) -> SkillSet:
         """The task's skills; ``terminals`` default to the task's own (``Task.terminals``).
         With ``pairs``, each action followed by each decision is one more choice
-        (:func:`pair_choices`)."""
+        (:func:`pair_choices`); with ``pairs_only`` as well, an action that a pair covers is
+        no longer drawn alone (:meth:`draw`)."""
         terminals = tuple(task.terminals if terminals is None else terminals)
         bad = [t for t in terminals if not isinstance(t, str) or not t.isidentifier()
                or t in RESERVED_OUTCOMES]
@@ -140,10 +149,21 @@ class SkillSet:
                     f"task {task.name}: terminal_skills {unknown} are not among the skills "
                     f"evolution may place {list(task.skill_names())}"
                 )
-        return cls(choices, terminals, free_terminals=enders is None, pairs=pairs)
+        return cls(choices, terminals, free_terminals=enders is None, pairs=pairs,
+                   pairs_only=pairs_only)
 
     def __len__(self) -> int:
         return len(self.choices)
+
+    def draw(self, rng: np.random.Generator) -> int:
+        """A random node's skill: uniform over :attr:`drawable`. With every choice drawable
+        it is ``rng.integers(len(self))``, so the random stream is the one without
+        ``pairs_only``. With ``pairs_only`` an action covered by a pair is not drawn: the
+        pair whose decision's outcomes all lead to one state does what it does (the decision
+        costs no time step), so the choices differ from a task whose actions report what
+        they sense (Jefferson's ant) by the plain decisions alone."""
+        k = int(rng.integers(len(self.drawable)))
+        return self.drawable[k]
 
     @property
     def shape(self) -> tuple[tuple[str, ...], bool]:

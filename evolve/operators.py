@@ -65,7 +65,7 @@ def random_node(
 ) -> Node:
     """A node with a random skill, random parameters and random edges (``node_id`` may be
     a target of its own edges)."""
-    k = int(rng.integers(len(skills)))
+    k = skills.draw(rng)
     c = skills.choices[k]
     params = [float(x) for x in rng.random(c.genes)]
     edges = [edge_for(g, skills, rng, weight, k, o, extra=node_id) for o in range(len(c.outcomes))]
@@ -91,7 +91,7 @@ def initialize(
     most ``skills.max_nodes``: what an FSA file holds)."""
     nodes = min(nodes, skills.max_nodes)
     g = Genome({}, 0, 0)
-    choices = [int(rng.integers(len(skills))) for _ in range(nodes)]
+    choices = [skills.draw(rng) for _ in range(nodes)]
     for k in choices:
         c = skills.choices[k]
         g.nodes[g.new_id()] = Node(k, [float(x) for x in rng.random(c.genes)], [])

@@ -117,7 +117,7 @@ def make_plan(
     if not whole_in(seed, 0, numpy=True):
         raise EvolutionError(f"seed must be a whole number >= 0, got {seed!r}")
     seed = int(seed)
-    skills = SkillSet.from_task(task, pairs=cfg.pairs)
+    skills = SkillSet.from_task(task, pairs=cfg.pairs, pairs_only=cfg.pairs_only)
     trials = cfg.trials or task.trials
     # the run records the trials asked for; a deterministic task uses one: every episode is
     # the same, one says it all

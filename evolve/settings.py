@@ -340,6 +340,11 @@ SETTINGS: tuple[Setting, ...] = (
             more="A task written with sensing skills apart from actions that only report "
             "done gets the building block that a task whose actions report what they sense "
             "has in every state."),
+    Setting("pairs_only", Kind.SWITCH, "with {pairs}, an action that a pair covers is not "
+            "placed alone: a pair whose decision leads one way does what it does",
+            flag="--pairs-only",
+            more="The skills evolution draws then differ from a task whose actions report "
+            "what they sense by the plain decisions alone."),
     # -- faults and limits ----------------------------------------------------------------
     Setting("eval_time_limit", Kind.REAL, "wall-clock limit of one evaluation (all its "
             "trials); past it, it scores the task's worst and counts as a time-out",

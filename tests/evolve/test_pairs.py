@@ -5,6 +5,7 @@ on every backend."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,9 @@ import pytest
 
 from benchmarks.tasks import ant
 from skillcompose import FSA, CompiledFSA, load_fsa, save_fsa
+from skillcompose.cli import main
 from skillcompose.evolve import EvolutionConfig, evolve
+from skillcompose.evolve.errors import EvolutionConfigError
 from skillcompose.evolve.genome import (
     Genome,
     GenomeCompiler,
@@ -144,3 +147,44 @@ def test_a_run_with_pairs_is_the_same_on_every_backend(sensing: Task, backend: s
     assert [h.best for h in other.history] == [h.best for h in serial.history]
     assert other.best_fsa.states == serial.best_fsa.states
     assert any("FoodAhead" in name for name in serial.best_fsa.states)
+
+
+# -- pairs only (``--pairs-only``) -------------------------------------------------------------
+def test_pairs_only_draws_the_pairs_in_place_of_the_actions_they_cover(sensing: Task) -> None:
+    skills = SkillSet.from_task(sensing, pairs=True, pairs_only=True)
+    assert labels(skills) == labels(SkillSet.from_task(sensing, pairs=True))  # names and files
+    drawn = [labels(skills)[k] for k in skills.drawable]
+    assert drawn == ["FoodAhead", "Move+FoodAhead", "TurnLeft+FoodAhead", "TurnRight+FoodAhead"]
+    rng = np.random.default_rng(0)
+    assert {skills.draw(rng) for _ in range(400)} == set(skills.drawable)
+    for _ in range(20):  # nor does any operator place a covered action alone
+        g = initialize(skills, rng, 12)
+        mutate(g, skills, rng, EvolutionConfig(p_mut=1.0, p_add=1.0))
+        assert all(skills.choices[n.skill].name == "FoodAhead"
+                   or skills.choices[n.skill].then is not None for n in g.nodes.values())
+
+
+@pytest.mark.parametrize("module, settings", [
+    ("benchmarks.tasks.ant", {"form": "reporting"}),
+    ("benchmarks.tasks.lawnmower", {}),
+])
+def test_pairs_only_changes_nothing_where_there_are_no_pairs(module: str,
+                                                             settings: dict[str, str]) -> None:
+    """A task with no pairs draws every skill, from the random stream it drew before."""
+    task = load_task(module, **settings)
+    skills = SkillSet.from_task(task, pairs=True, pairs_only=True)
+    assert skills.drawable == tuple(range(len(skills)))
+    a, b = np.random.default_rng(7), np.random.default_rng(7)
+    assert [skills.draw(a) for _ in range(50)] == [int(b.integers(len(skills)))
+                                                  for _ in range(50)]
+
+
+def test_pairs_only_needs_pairs_and_has_a_flag(tmp_path: Path) -> None:
+    with pytest.raises(EvolutionConfigError, match=r"pairs_only = True .* give pairs = True"):
+        EvolutionConfig(pairs_only=True)
+    out = tmp_path / "run"
+    assert main(["evolve", "benchmarks.tasks.ant", "--set", "trail=santa_fe", "--set",
+                 "form=sensing", "--pairs-only", "--generations", "2", "--seed", "1",
+                 "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    config = json.loads((out / "run.json").read_text())["config"]
+    assert config["pairs"] is True and config["pairs_only"] is True

@@ -22,7 +22,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.physics, pytest.mark.kinematics]
 
 CONFIG = EvolutionConfig(
     population=8, trials=1, elitism=1, tournament=2, initial_nodes=4, param_sigma=0.1,
-    p_mut=0.2, p_param=1.0, p_cross=0.0, p_add=0.0, p_del=0.0, cache=True, generations=3)
+    p_mut=0.2, p_param=1.0, p_cross=0.0, p_add=0.0, p_del=0.0, cache=True, generations=2)
 
 
 def _fitness(task: Task, fsa: FSA, seed: int) -> float:
