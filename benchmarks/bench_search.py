@@ -64,10 +64,11 @@ from skillcompose.evolve import (  # noqa: E402
     GenerationRecord,
     check_fresh,
     evolve,
-    preset_settings,
     simplify,
+    task_preset,
 )
-from skillcompose.task import load_task  # noqa: E402
+from skillcompose.evolve.config import NOISY_DEFAULT  # noqa: E402
+from skillcompose.task import Task, load_task  # noqa: E402
 
 Z = 0.99  # Koza's probability of success
 
@@ -107,6 +108,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "islands + cache + restarts": {**PRESETS["islands"], "cache": True, "restart_after": 20},
     "islands + cache refresh": {**PRESETS["islands"], "cache": True, "cache_refresh": 3},
     "noisy": PRESETS["noisy"],
+    "islands + parameter noise": NOISY_DEFAULT,
     "islands + cache refresh + parameter noise": {
         **PRESETS["islands"], "cache": True, "cache_refresh": 3, "p_param": 0.3},
     "old noisy: fixed worlds, fed back": {
@@ -167,8 +169,9 @@ CONFIGS = {name: {**settings, "require_holds": False} for name, settings in CONF
 
 DEFAULT = "default"
 """The settings ``skillcompose evolve`` takes without ``--preset``: the head's
-``preset_settings("default", ...)`` for the task (deterministic or not), with "solved" as the
-other settings here count it."""
+``task_preset("default", task)``: ``adaptive`` for a deterministic task, ``push`` for a noisy
+one whose skills take a vector, else ``NOISY_DEFAULT``, with "solved" as the other settings
+here count it."""
 
 
 DETERMINISTIC = ("paper", "robust", "robust + cache", "robust + cache + unique",
@@ -345,7 +348,7 @@ BENCHES = (
     ),
     Bench(
         "move to push, solved means it holds", "examples.move_to_push", {}, 0,
-        (100_000, 500_000), (DEFAULT, "robust", "push"),
+        (100_000, 500_000), (DEFAULT, "robust", "push", "islands + parameter noise"),
         _holds("The paper's section 4.2 in the task's default world (`facing`), the "
                "network's weights evolved, each setting given the individuals of 816 "
                "generations of `push`'s 150", "pushes", 0.9, "budget (122,400 individuals)"),
@@ -389,12 +392,12 @@ class _Spent(Exception):
     """A run whose population grows has processed its budget in individuals."""
 
 
-def config_settings(config: str, deterministic: bool, holds: bool = False) -> dict[str, Any]:
-    """The evolution settings named ``config`` for a task that is ``deterministic`` or not;
-    with ``holds``, "solved" as the presets say it (the exported FSA holds), else the page's
-    older "solved" (an evaluation at the target and its confirmation)."""
+def config_settings(config: str, task: Task, holds: bool = False) -> dict[str, Any]:
+    """The evolution settings named ``config`` for ``task`` (``default`` as it resolves for
+    the task); with ``holds``, "solved" as the presets say it (the exported FSA holds), else
+    the page's older "solved" (an evaluation at the target and its confirmation)."""
     if config == DEFAULT:
-        settings = preset_settings("default", deterministic)
+        settings = task_preset("default", task)
         return settings if holds else {**settings, "require_holds": False}
     return HOLDS_CONFIGS[config] if holds else CONFIGS[config]
 
@@ -404,8 +407,8 @@ def budget(bench: Bench, config: str, population: int | None) -> int:
     gives each setting the same individuals, that many over the population."""
     if not bench.individuals:
         return bench.generations
-    m = population or int(config_settings(config, bench.fresh == 0).get(
-        "population", EvolutionConfig().population))
+    m = population or int(config_settings(config, load_task(bench.module, **bench.settings))
+                          .get("population", EvolutionConfig().population))
     return max(1, bench.individuals // m)
 
 
@@ -413,7 +416,7 @@ def run_one(bench: Bench, config: str, seed: int, generations: int,
             population: int | None) -> RunResult:
     """One serial evolution run."""
     task = load_task(bench.module, **bench.settings)
-    cfg = EvolutionConfig(**{**config_settings(config, task.deterministic, bench.holds),
+    cfg = EvolutionConfig(**{**config_settings(config, task, bench.holds),
                              "generations": generations})
     if population is not None:
         cfg = cfg.replace(population=population,

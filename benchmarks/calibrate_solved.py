@@ -111,10 +111,9 @@ def run_case(case: Case, seed: int, recheck: int, workers: int,
              generations: int | None) -> Row:
     task = load_task(case.module, **case.settings)
     budget = generations or case.generations
-    from skillcompose.evolve.config import EvolutionConfig, preset_settings
+    from skillcompose.evolve import EvolutionConfig, task_preset
 
-    cfg = EvolutionConfig(**{**preset_settings(case.preset, task.deterministic),
-                             "generations": budget})
+    cfg = EvolutionConfig(**{**task_preset(case.preset, task), "generations": budget})
     t = time.perf_counter()
     result = evolve(task, cfg, seed=seed, backend="process" if workers > 1 else "serial",
                     workers=workers)

@@ -94,12 +94,10 @@ def evolve_physics(seed: int, generations: int) -> dict[str, Any]:
     """Evolve pour water with ``reach=physics`` (the default preset, serially: the physics
     checks are cached per process) and write its best FSA where :data:`FSAS` looks."""
     from skillcompose import save_fsa
-    from skillcompose.evolve import EvolutionConfig, evolve
-    from skillcompose.evolve.config import preset_settings
+    from skillcompose.evolve import EvolutionConfig, evolve, task_preset
 
     task = load_task(TASK, reach="physics")
-    cfg = EvolutionConfig(**{**preset_settings("default", task.deterministic),
-                             "generations": generations})
+    cfg = EvolutionConfig(**{**task_preset("default", task), "generations": generations})
     result = evolve(task, cfg, seed=seed, workers=1, backend="serial")
     save_fsa(result.best_fsa, FSAS["evolved, reach=physics"], header=(
         "The best pour-water FSA evolved with reach=physics (the abstract skills pour only "

@@ -48,6 +48,7 @@ if TYPE_CHECKING:
     from .operators import mutate as mutate
     from .operators import mutate_genes as mutate_genes
     from .operators import mutate_node as mutate_node
+    from .plan import task_preset as task_preset
     from .pool import ProcessEvaluator as ProcessEvaluator
     from .ray_backend import RayEvaluator as RayEvaluator
     from .result import EvolutionResult as EvolutionResult
@@ -77,6 +78,7 @@ else:
         "holds": "check_fresh describe_fresh",
         "operators": ("add_node change_start crossover delete_node fix_start initialize mutate "
                       "mutate_genes mutate_node"),
+        "plan": "task_preset",
         "pool": "ProcessEvaluator",
         "ray_backend": "RayEvaluator",
         "result": "EvolutionResult GenerationRecord",

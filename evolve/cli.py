@@ -15,6 +15,7 @@ from skillcompose.arguments import add_json_option, json_output, print_json, set
 from skillcompose.errors import SkillcomposeError, clip, printable
 
 from .config import (
+    DEFAULT_KINDS,
     DEFAULT_PRESET,
     PRESET_NAMES,
     EvolutionConfig,
@@ -160,17 +161,20 @@ def _hold_hint(cfg: EvolutionConfig, task: Task) -> str:
     return "run without --preset paper: every other preset goes on until the exported FSA holds"
 
 
-def _config(args: argparse.Namespace, deterministic: bool = False) -> EvolutionConfig:
-    """The settings of the command line for a task that is ``deterministic`` or not."""
+def _config(args: argparse.Namespace, kind: tuple[bool, bool] = (False, False)
+            ) -> EvolutionConfig:
+    """The settings of the command line for a task of ``kind``, ``(deterministic,
+    vectors)`` as :func:`~skillcompose.evolve.config.preset_settings` takes them."""
     given = _given_settings(args)
-    return EvolutionConfig(**{**_preset(args.preset, deterministic, given), **given})
+    return EvolutionConfig(**{**_preset(args.preset, kind, given), **given})
 
 
-def _preset(name: str | None, deterministic: bool, given: dict[str, Any]) -> dict[str, Any]:
-    """The settings of preset ``name`` (None: the default) for a task that is
-    ``deterministic`` or not, beside the settings ``given`` on the command line: the
-    default's islands follow a population given without them (config.py)."""
-    settings = dict(preset_settings(name or DEFAULT_PRESET, deterministic))
+def _preset(name: str | None, kind: tuple[bool, bool], given: dict[str, Any]
+            ) -> dict[str, Any]:
+    """The settings of preset ``name`` (None: the default) for a task of ``kind``
+    (:func:`_config`), beside the settings ``given`` on the command line: the default's
+    islands follow a population given without them (config.py)."""
+    settings = dict(preset_settings(name or DEFAULT_PRESET, *kind))
     if (name or DEFAULT_PRESET) == DEFAULT_PRESET and "islands" not in given and \
             "population" in given and settings.get("islands", 1) > 1:
         settings["islands"] = default_islands(int(given["population"]), settings["islands"])
@@ -214,9 +218,9 @@ def _resume_conflicts(args: argparse.Namespace, record: dict[str, Any]) -> list[
         differs("--seed", args.seed, record["seed"])
     if args.seed_fsa is not None:
         differs("--seed-fsa", args.seed_fsa, record["seed_fsa"])
-    if args.preset is not None:  # default: either of what it resolves to (the task is not
+    if args.preset is not None:  # default: any of what it resolves to (the task is not
         # imported before the run's options are found to agree)
-        choices = [_preset(args.preset, d, given) for d in (False, True)]
+        choices = [_preset(args.preset, kind, given) for kind in DEFAULT_KINDS]
         found: list[list[str]] = []  # the problems of each choice
         for settings in choices:
             before = len(problems)
@@ -325,7 +329,9 @@ def _run_arguments(args: argparse.Namespace) -> tuple[Task, EvolutionConfig, dic
                 "or continue a run with --resume DIR"
             )
         task = load_task(args.task, **parse_settings(args.settings))
-        cfg = _config(args, task.deterministic)
+        from .plan import takes_vectors
+
+        cfg = _config(args, (task.deterministic, takes_vectors(task)))
         cores = args.workers or os.cpu_count() or 1
         backend = args.backend or ("process" if cores > 1 else "serial")
         workers = args.workers

@@ -319,7 +319,9 @@ Every preset but ``paper`` has ``require_holds``: a run is solved when its expor
 on fresh episodes at the required success rate (see :mod:`skillcompose.evolve.holds`).
 ``default`` (the command line's when no preset is given, and :func:`evolve`'s when given no
 config) is not a fixed table: it is ``adaptive`` for a task whose episodes are all the same
-(``Task.deterministic``), else :data:`NOISY_DEFAULT` (:func:`preset_settings`)."""
+(``Task.deterministic``), ``push`` for a noisy task with a skill that takes a vector (a
+network's weights: ``skillcompose.evolve.plan.takes_vectors``), else :data:`NOISY_DEFAULT`
+(:func:`preset_settings`)."""
 
 NOISY_DEFAULT: dict[str, Any] = {**_ISLANDS, "p_param": 0.3, **_HOLDS}
 """What ``default`` is for a noisy task: the island preset with each node of a mutated child
@@ -334,13 +336,22 @@ tasks"."""
 DEFAULT_PRESET = "default"
 
 
-def preset_settings(name: str, deterministic: bool) -> dict[str, Any]:
-    """The settings of preset ``name`` for a task that is ``deterministic`` or not:
-    ``default`` resolves to ``adaptive`` or :data:`NOISY_DEFAULT`, the others are as
-    listed."""
+def preset_settings(name: str, deterministic: bool, vectors: bool = False) -> dict[str, Any]:
+    """The settings of preset ``name`` for a task that is ``deterministic`` or not, and
+    whose skills take a vector parameter (``vectors``: a network's weights) or not:
+    ``default`` resolves to ``adaptive`` (deterministic), ``push`` (noisy, with vectors) or
+    :data:`NOISY_DEFAULT`; the others are as listed."""
     if name == DEFAULT_PRESET:
-        return dict(PRESETS["adaptive"]) if deterministic else dict(NOISY_DEFAULT)
+        if deterministic:
+            return dict(PRESETS["adaptive"])
+        return dict(PRESETS["push"]) if vectors else dict(NOISY_DEFAULT)
     return dict(PRESETS[name])
+
+
+DEFAULT_KINDS = ((False, False), (False, True), (True, False))
+"""The tasks ``default`` tells apart, as :func:`preset_settings`'s ``(deterministic,
+vectors)``: noisy, noisy with a vector parameter, deterministic (a deterministic task runs
+``adaptive`` whatever its parameters)."""
 
 
 def default_islands(population: int, most: int) -> int:
@@ -362,8 +373,9 @@ PRESET_NAMES = (DEFAULT_PRESET, *PRESETS)
 """Every name ``--preset`` takes."""
 
 PRESET_ABOUT = {
-    DEFAULT_PRESET: "islands with parameter noise, or adaptive for a task whose episodes "
-                    "are all the same",
+    DEFAULT_PRESET: "islands with parameter noise; push for a noisy task whose skills take a "
+                    "vector (a network's weights); adaptive for a task whose episodes are all "
+                    "the same",
     "paper": "table 1 exactly, solved on one evaluation",
     "robust": "one population for noisy tasks, chosen on an earlier pour world (the "
               "noisy default before the islands)",

@@ -26,7 +26,24 @@ from .resume import run_record
 if TYPE_CHECKING:
     from .rundir import RunDir
 
-__all__ = ["Plan", "check_arguments", "make_plan"]
+__all__ = ["Plan", "check_arguments", "make_plan", "takes_vectors", "task_preset"]
+
+
+def takes_vectors(task: Task) -> bool:
+    """Whether a skill evolution may place on ``task`` takes a vector parameter (a
+    network's weights): the default preset for such a noisy task is ``push``, whose every
+    mutated node's parameters move by small steps, judged on 20 shared episodes. The
+    islands of :data:`~skillcompose.evolve.config.NOISY_DEFAULT` perturb a node's numbers
+    one time in three with steps twice as large, and solved moving to push on none of 5
+    held-out seeds where ``push`` solved all 5 (docs/evolve.md)."""
+    return any(p.size is not None for name in task.skill_names()
+               for p in task.registry.spec(name).params)
+
+
+def task_preset(name: str, task: Task) -> dict[str, Any]:
+    """The settings of preset ``name`` for ``task``: ``default`` as it resolves for the
+    task (:func:`~skillcompose.evolve.config.preset_settings`), the others as listed."""
+    return preset_settings(name, task.deterministic, takes_vectors(task))
 
 
 @dataclass(frozen=True)
@@ -103,7 +120,7 @@ def make_plan(
     """The run :func:`evolve` was asked for (``checkpoint`` and ``record``: a resumed run's,
     whose seed, seed FSA and settings stand)."""
     if cfg is None:  # the honest default: "solved" means the exported FSA holds
-        cfg = EvolutionConfig(**preset_settings(DEFAULT_PRESET, task.deterministic))
+        cfg = EvolutionConfig(**task_preset(DEFAULT_PRESET, task))
     simplify_result = True if simplify_result is None else simplify_result
     simplify_trials = 200 if simplify_trials is None else simplify_trials
     if not whole_in(simplify_trials, 1):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from skillcompose import FSA, Blackboard, State
+from skillcompose.evolve import PRESETS
 from skillcompose.task import load_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -170,6 +171,19 @@ def test_the_docking_robot_is_also_measured_with_solved_meaning_it_holds() -> No
     assert bench_search.held_out_note(holds, [1000]).startswith("Held-out task")
     assert not any(bench_search.held_out(b) for b in bench_search.BENCHES
                    if b.name.startswith("ant, John Muir trail, reporting"))
+    task = load_task(holds.module)
     for config in holds.configs:  # every preset's own "solved", the page's older one elsewhere
-        assert bench_search.config_settings(config, False, holds=True)["require_holds"]
-        assert not bench_search.config_settings(config, False)["require_holds"]
+        assert bench_search.config_settings(config, task, holds=True)["require_holds"]
+        assert not bench_search.config_settings(config, task)["require_holds"]
+
+
+def test_moving_to_push_is_measured_with_the_default_it_resolves_to() -> None:
+    """The default of a noisy task whose skills take a vector (the network's weights) is
+    ``push``; each setting gets the same individuals, so the default's budget is push's."""
+    bench = next(b for b in bench_search.BENCHES if b.name == "move to push, solved means "
+                 "it holds")
+    task = load_task(bench.module, **bench.settings)
+    assert bench_search.config_settings("default", task, holds=True) == PRESETS["push"]
+    assert bench_search.budget(bench, "default", None) == \
+        bench_search.budget(bench, "push", None) == 816
+    assert bench_search.budget(bench, "robust", None) == 204

@@ -13,6 +13,7 @@ from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import EvolutionConfig, RunDir, evolve
 from skillcompose.evolve.config import NOISY_DEFAULT, PRESETS, preset_settings
 from skillcompose.evolve.errors import EvolutionConfigError
+from skillcompose.evolve.plan import takes_vectors, task_preset
 from skillcompose.task import Task, TaskError, load_task
 from skillcompose.testing import assert_success_rate
 
@@ -91,7 +92,30 @@ def test_the_paper_preset_is_table_1_and_the_others_require_holds() -> None:
         assert PRESETS[name]["require_holds"] is True
     assert preset_settings("default", True) == PRESETS["adaptive"]
     assert preset_settings("default", False) == NOISY_DEFAULT
+    assert preset_settings("default", False, vectors=True) == PRESETS["push"]
+    assert preset_settings("default", True, vectors=True) == PRESETS["adaptive"]
     assert NOISY_DEFAULT["require_holds"] is True and NOISY_DEFAULT["islands"] == 4
+
+
+def test_a_noisy_task_whose_skills_take_a_vector_defaults_to_push(tmp_path: Path) -> None:
+    """Moving to push evolves a network's weights (a vector parameter): without --preset it
+    runs ``push``, as ``evolve(task)`` does; a task of scalar parameters keeps the islands,
+    and ``--resume`` with ``--preset default`` is no change."""
+    push = load_task("examples.move_to_push")
+    assert takes_vectors(push) and not takes_vectors(_task())
+    assert task_preset("default", push) == PRESETS["push"]
+    assert task_preset("default", _task()) == NOISY_DEFAULT
+    out = tmp_path / "run"
+    argv = ["evolve", "examples.move_to_push", "--set", "trials=2", "--generations", "1",
+            "--population", "6", "--seed", "0", "--workers", "1", "--quiet",
+            "--check-trials", "0", "--no-simplify", "--out", str(out)]
+    assert skillcompose_main(argv) == 0
+    config = json.loads((out / "run.json").read_text())["config"]
+    assert {k: config[k] for k in PRESETS["push"] if k != "population"} == \
+        {k: v for k, v in PRESETS["push"].items() if k != "population"}
+    assert config["population"] == 6 and config["islands"] == 1
+    assert skillcompose_main(["evolve", "--resume", str(out), "--preset", "default",
+                              "--population", "6", "--quiet"]) == 0
 
 
 def test_the_success_rate_is_checked_where_it_is_given() -> None:
