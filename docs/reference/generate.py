@@ -108,9 +108,10 @@ def presets_page() -> str:
         every.append(f"| {_code(s)} | {option} | {_cell(s.takes())} | "
                      f"{_cell(s.describe_default(getattr(defaults, s.name)))} | "
                      f"{_cell(s.text(_code, more=True))} |")
-    def resolved(deterministic: bool) -> str:
-        """The preset ``default`` is for a task that is ``deterministic`` or not."""
-        got = preset_settings("default", deterministic)
+    def resolved(deterministic: bool, vectors: bool = False) -> str:
+        """The preset ``default`` is for a task that is ``deterministic`` or not, whose
+        skills take a vector or not."""
+        got = preset_settings("default", deterministic, vectors)
         return next((f"`{n}`" for n in PRESETS if n != "default" and PRESETS[n] == got),
                     "its own settings")
     return "\n".join([
@@ -121,8 +122,9 @@ def presets_page() -> str:
         "each setting, and `skillcompose evolve` offers it, from the same record. Bold: what",
         "the preset sets; the rest is the paper's table 1 (`EvolutionConfig()`), which `paper`",
         "is. `default` (`skillcompose evolve TASK` with no `--preset`, and `evolve(task)` with",
-        f"no config) is {resolved(False)} for a noisy task and {resolved(True)} for a task "
-        "whose episodes are all the same.",
+        f"no config) is {resolved(False)} for a noisy task, {resolved(False, True)} for a "
+        "noisy task with a skill that takes a vector (a network's weights), and "
+        f"{resolved(True)} for a task whose episodes are all the same.",
         "",
         *rows,
         "",
