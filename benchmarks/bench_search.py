@@ -88,6 +88,8 @@ class Bench:
     fresh: int = 0  # fresh episodes on which each exported FSA is checked (noisy tasks)
     full_only: bool = False
     individuals: int = 0  # when set: each setting's budget, generations = this // M
+    episodes: int = 0  # when set: each run's budget in episodes (--max-episodes), every
+    # episode counted (evaluations, confirmations, holds tests), and no generation limit
     other_form: str = ""  # the benchmark of the same task in its other representation
     candidates: tuple[str, ...] = ()  # more settings, measured only when --config names them
     holds: bool = False  # "solved" as the presets say it (the exported FSA holds), not the
@@ -353,7 +355,18 @@ BENCHES = (
                "network's weights evolved, each setting given the individuals of 816 "
                "generations of `push`'s 150", "pushes", 0.9, "budget (122,400 individuals)"),
         fresh=1000, full_only=True, holds=True, individuals=122_400),
+    Bench(
+        "move to push, solved means it holds, equal episodes", "examples.move_to_push", {}, 0,
+        (100_000, 500_000), ("islands + parameter noise",),
+        _holds("The section above with the same episodes for every setting: the most that "
+               "`push` could spend in its 816 generations of 150, each evaluated on 20 "
+               "episodes", "pushes", 0.9, "budget (2,448,000 episodes)"),
+        fresh=1000, full_only=True, holds=True, episodes=2_448_000),
 )
+
+EPISODE_BUDGETED_GENERATIONS = 100_000
+"""The generation limit of a run whose budget is in episodes (``Bench.episodes``): more than
+any run reaches."""
 
 
 @dataclass
@@ -405,6 +418,8 @@ def config_settings(config: str, task: Task, holds: bool = False) -> dict[str, A
 def budget(bench: Bench, config: str, population: int | None) -> int:
     """The generation budget of ``config`` on ``bench``: its own, or, for a benchmark that
     gives each setting the same individuals, that many over the population."""
+    if bench.episodes:
+        return EPISODE_BUDGETED_GENERATIONS
     if not bench.individuals:
         return bench.generations
     m = population or int(config_settings(config, load_task(bench.module, **bench.settings))
@@ -417,7 +432,8 @@ def run_one(bench: Bench, config: str, seed: int, generations: int,
     """One serial evolution run."""
     task = load_task(bench.module, **bench.settings)
     cfg = EvolutionConfig(**{**config_settings(config, task, bench.holds),
-                             "generations": generations})
+                             "generations": generations,
+                             "max_episodes": bench.episodes or None})
     if population is not None:
         cfg = cfg.replace(population=population,
                           elitism=min(cfg.elitism, population // cfg.islands - 1))
@@ -939,7 +955,10 @@ def held_out_note(bench: Bench, seeds: Sequence[int]) -> str:
 
 
 def budget_text(bench: Bench, generations: dict[str, int]) -> str:
-    """A section's budget: generations, or the same individuals for every setting."""
+    """A section's budget: generations, or the same individuals or episodes for every
+    setting."""
+    if bench.episodes:
+        return f"budget {bench.episodes:,} episodes per run for every setting"
     if not bench.individuals:
         return f"budget {max(generations.values())} generations"
     each = ", ".join(f"{c} {g}" for c, g in generations.items())
