@@ -323,7 +323,7 @@ BENCHES = (
         fresh=1000),
     Bench(
         "dock (noisy), solved means it holds", "benchmarks.tasks.dock", {}, 300,
-        (50_000, 150_000), (DEFAULT, "robust", "islands", "noisy"),
+        (50_000, 150_000), (DEFAULT, "robust", "islands", "noisy", "push"),
         _holds("Our docking robot as above", "docks", 0.9, 300),
         fresh=1000, holds=True),
     Bench(
@@ -338,7 +338,7 @@ BENCHES = (
     ),
     Bench(
         "pour water (noisy), solved means it holds", "examples.pour_water", {"p_fail": 0.2},
-        500, (50_000, 150_000), (DEFAULT, "robust", "islands"),
+        500, (50_000, 150_000), (DEFAULT, "robust", "islands", "push"),
         _holds("The paper's section 4.1 at p_fail 0.2", "pours", 0.99,
                "500 generations (the calibration's budget, `solved.md`)"),
         fresh=1000, holds=True),
