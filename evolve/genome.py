@@ -158,10 +158,11 @@ class SkillSet:
     def draw(self, rng: np.random.Generator) -> int:
         """A random node's skill: uniform over :attr:`drawable`. With every choice drawable
         it is ``rng.integers(len(self))``, so the random stream is the one without
-        ``pairs_only``. With ``pairs_only`` an action covered by a pair is not drawn: the
-        pair whose decision's outcomes all lead to one state does what it does (the decision
-        costs no time step), so the choices differ from a task whose actions report what
-        they sense (Jefferson's ant) by the plain decisions alone."""
+        ``pairs_only``. With ``pairs_only`` an action covered by a pair is not drawn: a pair
+        whose decision's outcomes all lead to one state acts as the action alone (but for
+        the decision's own step, none in the ant's sensing form), so the choices differ
+        from a task whose actions report what they sense (Jefferson's ant) by the plain
+        decisions alone."""
         k = int(rng.integers(len(self.drawable)))
         return self.drawable[k]
 

@@ -341,7 +341,8 @@ SETTINGS: tuple[Setting, ...] = (
             "done gets the building block that a task whose actions report what they sense "
             "has in every state."),
     Setting("pairs_only", Kind.SWITCH, "with {pairs}, an action that a pair covers is not "
-            "placed alone: a pair whose decision leads one way does what it does",
+            "placed alone: a pair whose decision's outcomes all lead to one state acts as "
+            "the action",
             flag="--pairs-only",
             more="The skills evolution draws then differ from a task whose actions report "
             "what they sense by the plain decisions alone."),

@@ -45,8 +45,6 @@ MAX_SETTINGS = 100  # task settings a run.json may hold
 MAX_VALUE = 4096  # characters of a run.json text value (a task's name, a setting)
 _FRESH_SHOWN = ("success_rate", "lower", "upper", "holds", "deterministic")
 """The keys of a run's fresh check the runs page reads (:func:`fresh_text`)."""
-
-
 _CONFIG_SHOWN = ("population", "generations", "trials", "elitism")
 
 
