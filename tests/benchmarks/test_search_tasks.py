@@ -151,6 +151,13 @@ def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     assert bench_search.merge_page(old, old, ["all"]) == old  # nothing kept: as measured
 
 
+def _page(command: str, machine: str, sections: list[tuple[str, str, str]]) -> str:
+    """A page of this script: its head, then each section (name, run, body)."""
+    return (f"# Search\n\nCommand: `{command}`  \nMachine: {machine}.\n\n" +
+            "\n".join(f"## {name}\n\n{bench_search.RUN_MARK}of {run}.\n\n{body}\n"
+                      for name, run, body in sections))
+
+
 def test_held_out_seeds_get_sections_of_their_own_beside_the_first() -> None:
     santa = bench_search.BENCHES[0]
     assert bench_search.section_name(santa, [0, 1]) == "ant, Santa Fe trail"
@@ -159,11 +166,9 @@ def test_held_out_seeds_get_sections_of_their_own_beside_the_first() -> None:
     assert "Held-out" in bench_search.seeds_note([1000, 1001])
     assert "Tuning seeds (below 1000)" in bench_search.seeds_note([100, 101])
     assert "flatter" in bench_search.seeds_note([28, 29, 30])  # two of them were tuned on
-    old = ("# Search\n\nCommand: `x`  \nMachine: old.\n\n"
-           f"## ant, Santa Fe trail\n\n{bench_search.RUN_MARK}of then.\n\nold Santa Fe\n\n"
-           f"## maze (wall following)\n\n{bench_search.RUN_MARK}of then.\n\nold maze\n")
-    new = ("# Search\n\nCommand: `y`  \nMachine: new.\n\n"
-           f"## {held_out}\n\n{bench_search.RUN_MARK}of now.\n\nheld-out Santa Fe\n")
+    old = _page("x", "old", [("ant, Santa Fe trail", "then", "old Santa Fe"),
+                             ("maze (wall following)", "then", "old maze")])
+    new = _page("y", "new", [(held_out, "now", "held-out Santa Fe")])
     text = bench_search.merge_page(old, new, [held_out])
     assert [line for line in text.splitlines() if line.startswith("## ")] == [
         "## ant, Santa Fe trail", f"## {held_out}", "## maze (wall following)"]
@@ -279,11 +284,9 @@ def test_more_seeds_from_the_same_first_seed_replace_the_shorter_section() -> No
     assert not bench_search.supersedes(long, "ant, John Muir trail, sensing, seeds 100–109")
     assert not bench_search.supersedes(long, "ant, John Muir trail, reporting, seeds 1000–1009")
     assert not bench_search.supersedes(long, "ant, John Muir trail, sensing")
-    old = ("# Search\n\nCommand: `x`  \nMachine: old.\n\n"
-           f"## {short}\n\n{bench_search.RUN_MARK}of then.\n\nten seeds\n\n"
-           f"## maze, sensing, seeds 1000–1009\n\n{bench_search.RUN_MARK}of then.\n\nmaze\n")
-    new = ("# Search\n\nCommand: `y`  \nMachine: new.\n\n"
-           f"## {long}\n\n{bench_search.RUN_MARK}of now.\n\ntwenty seeds\n")
+    old = _page("x", "old", [(short, "then", "ten seeds"),
+                             ("maze, sensing, seeds 1000–1009", "then", "maze")])
+    new = _page("y", "new", [(long, "now", "twenty seeds")])
     text = bench_search.merge_page(old, new, [long])
     assert [line for line in text.splitlines() if line.startswith("## ")] == [
         f"## {long}", "## maze, sensing, seeds 1000–1009"]
