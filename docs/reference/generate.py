@@ -15,6 +15,7 @@ import mkdocs_gen_files
 
 from skillcompose.cli import build_parser
 from skillcompose.evolve.config import (
+    NOISY_DEFAULT,
     PRESET_ABOUT,
     PRESET_NAMES,
     PRESETS,
@@ -112,6 +113,10 @@ def presets_page() -> str:
         """The preset ``default`` is for a task that is ``deterministic`` or not, whose
         skills take a vector or not."""
         got = preset_settings("default", deterministic, vectors)
+        if got == NOISY_DEFAULT:
+            extra = {k: v for k, v in got.items() if PRESETS["islands"].get(k) != v}
+            return ("`NOISY_DEFAULT` (`islands` with " +
+                    ", ".join(f"`{k}={v}`" for k, v in extra.items()) + ")")
         return next((f"`{n}`" for n in PRESETS if n != "default" and PRESETS[n] == got),
                     "its own settings")
     return "\n".join([
