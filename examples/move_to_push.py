@@ -19,8 +19,10 @@ Evolve in the world drawn after the paper's text (``world`` below)::
 
 Settings (``make_task(**settings)``, ``--set name=value``):
 
-- ``network`` (``layered``, default, or ``recurrent``): MoveBase's topology,
-  :mod:`skillcompose.skills.network` (38 or 112 weights).
+- ``network`` (``layered``, default, ``recurrent`` or ``layered-12``): MoveBase's topology,
+  :mod:`skillcompose.skills.network` (38, 112 or 137 weights). ``layered-12`` is not the
+  paper's: the layered network with 12 hidden units instead of 3, to measure what the
+  paper's small network costs.
 - ``backend`` (``sim``, default, ``kinematic`` or ``dynamic``): Push judged by the
   reachability classifier, by the PR2 model (IK with joint limits, no collision with the
   table), or by physics: the PR2 in MuJoCo drives its base and pushes the object with its

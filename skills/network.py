@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "HIDDEN",
     "N_HIDDEN",
     "N_INPUTS",
     "N_OUTPUTS",
@@ -42,23 +43,29 @@ __all__ = [
     "weight_count",
 ]
 
-Topology = Literal["layered", "recurrent"]
-TOPOLOGIES: tuple[Topology, ...] = ("layered", "recurrent")
+Topology = Literal["layered", "recurrent", "layered-12"]
+TOPOLOGIES: tuple[Topology, ...] = ("layered", "recurrent", "layered-12")
 N_INPUTS, N_HIDDEN, N_OUTPUTS = 5, 3, 5
+HIDDEN: dict[Topology, int] = {"layered": N_HIDDEN, "recurrent": N_HIDDEN, "layered-12": 12}
+"""Hidden units of each topology's network."""
 RECURRENT_UPDATES = 30
 WEIGHT_RANGE = (-3.0, 3.0)
 FloatArray = NDArray[np.float64]
 
 
 def weight_count(
-    topology: Topology, n_in: int = N_INPUTS, n_hidden: int = N_HIDDEN, n_out: int = N_OUTPUTS
+    topology: Topology, n_in: int = N_INPUTS, n_hidden: int | None = None,
+    n_out: int = N_OUTPUTS,
 ) -> int:
-    """How many weights (biases included) a network of ``topology`` has."""
-    if topology == "layered":
-        return n_hidden * (n_in + 1) + n_out * (n_hidden + 1)
+    """How many weights (biases included) a network of ``topology`` has (``n_hidden``
+    defaults to the topology's own, :data:`HIDDEN`)."""
+    if topology not in TOPOLOGIES:
+        raise ValueError(f"unknown network topology {topology!r}; use one of {TOPOLOGIES}")
+    if n_hidden is None:
+        n_hidden = HIDDEN[topology]
     if topology == "recurrent":
         return (n_hidden + n_out) * (n_in + n_hidden + n_out + 1)
-    raise ValueError(f"unknown network topology {topology!r}; use one of {TOPOLOGIES}")
+    return n_hidden * (n_in + 1) + n_out * (n_hidden + 1)
 
 
 def _sigmoid(z: FloatArray) -> FloatArray:
@@ -128,13 +135,14 @@ Network = LayeredNetwork | RecurrentNetwork
 
 @functools.lru_cache(maxsize=256)
 def _cached(topology: Topology, weights: tuple[float, ...]) -> Network:
-    if topology == "layered":
-        return LayeredNetwork(weights)
-    return RecurrentNetwork(weights)
+    if topology == "recurrent":
+        return RecurrentNetwork(weights)
+    return LayeredNetwork(weights, n_hidden=HIDDEN[topology])
 
 
 def make_network(topology: Topology, weights: Sequence[float]) -> Network:
-    """The network of ``topology`` with ``weights`` (5 inputs, 3 hidden, 5 outputs).
+    """The network of ``topology`` with ``weights`` (5 inputs, :data:`HIDDEN` hidden units,
+    5 outputs).
 
     Instances are immutable after construction and cached by weight vector.
     """

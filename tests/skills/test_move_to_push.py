@@ -195,6 +195,8 @@ def test_task_settings_are_checked() -> None:
         load_task("examples.move_to_push", backend="kinmatic")
     assert load_task("examples.move_to_push", network="recurrent").registry.spec(
         "MoveBase").param("weights").size == 112
+    assert load_task("examples.move_to_push", network="layered-12").registry.spec(
+        "MoveBase").param("weights").size == 137
 
 
 @pytest.mark.kinematics

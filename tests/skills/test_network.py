@@ -20,6 +20,7 @@ def test_weight_counts() -> None:
     assert weight_count("layered") == 38  # the paper's count: 3*(5+1) + 5*(3+1)
     assert weight_count("recurrent") == 112  # the authors' net: (3+5) * (13+1)
     assert weight_count("layered", 2, 1, 1) == 1 * 3 + 1 * 2
+    assert weight_count("layered-12") == 137  # 12*(5+1) + 5*(12+1): not the paper's
     with pytest.raises(ValueError, match="unknown network topology"):
         weight_count("convolutional")  # type: ignore[arg-type]
 
@@ -49,6 +50,19 @@ def test_the_layered_network_is_the_formula() -> None:
     out = LayeredNetwork(w)(x, np.random.default_rng(0))
     assert np.allclose(out, expected)
     assert np.array_equal(out, LayeredNetwork(w)(x, np.random.default_rng(99)))  # no draws
+
+
+def test_the_wider_layered_network_has_twelve_hidden_units() -> None:
+    rng = np.random.default_rng(3)
+    w = rng.uniform(-3, 3, 137)
+    x = rng.uniform(-1, 1, 5)
+    first = w[:72].reshape(12, 6)
+    second = w[72:].reshape(5, 13)
+    hidden = 1 / (1 + np.exp(-(first[:, :5] @ x + first[:, 5])))
+    expected = 1 / (1 + np.exp(-(second[:, :12] @ hidden + second[:, 12])))
+    assert np.allclose(make_network("layered-12", w)(x, np.random.default_rng(0)), expected)
+    with pytest.raises(ValueError, match="a layered 5-12-5 network has 137 weights, got 38"):
+        make_network("layered-12", w[:38])
 
 
 def test_the_recurrent_network_updates_synchronously_from_a_random_state() -> None:
