@@ -53,3 +53,27 @@ def test_unknown_algorithms_and_worlds_are_refused(capsys: pytest.CaptureFixture
     with pytest.raises(SystemExit):
         compare_paper.main(["--algorithms", "genetic"])
     assert "--algorithms: unknown ['genetic']" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # one short run of moving to push, judged on the PR2 model: ~3 s
+@pytest.mark.kinematics
+def test_a_network_the_paper_did_not_use_runs_ours_alone_and_sets_no_target(
+        tmp_path: Path) -> None:
+    args = ["--quick", "--experiments", "push-layered-12", "--algorithms", "table1,ours",
+            "--seeds", "1", "--out", str(tmp_path)]
+    assert compare_paper.main(args) == 0
+    rows = json.loads((tmp_path / "paper_comparison.json").read_text())
+    assert [(r["experiment"], r["algorithm"]) for r in rows] == [("push-layered-12", "ours")]
+    text = (tmp_path / "paper_comparison.md").read_text()
+    assert "- push-layered-12, ours, paper worlds (not the paper's network, so not one of " \
+        "the issue's targets)" in text
+    assert "target 5/5" not in text  # no target line for it
+    # stacking nests the best push FSA of a network the paper used, never this one
+    assert compare_paper.best_reach(
+        [compare_paper.Row(**r) for r in rows], "paper", tmp_path) is None
+
+
+def test_unknown_experiments_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        compare_paper.main(["--experiments", "push-layered,push-cnn"])
+    assert "--experiments: unknown ['push-cnn']" in capsys.readouterr().err
