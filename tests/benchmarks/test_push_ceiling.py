@@ -51,9 +51,12 @@ def test_the_quick_run_writes_its_page(tmp_path: Path) -> None:
     blind = json.loads((tmp_path / "push_ceiling.json").read_text())["blind"]
     assert 1 <= len(blind["rows"]) <= push_ceiling.BLIND_STEPS
     assert all(0 <= r["fresh"] <= 3 and 0 <= r["network_pushed"] <= 3 for r in blind["rows"])
+    assert all(0 <= r["wide_pushed"] <= 3 and r["wide_error_m"] >= 0 for r in blind["rows"])
+    assert blind["margin_m"] == push_ceiling.MARGIN_M
+    assert len(blind["margin_rows"]) <= push_ceiling.BLIND_STEPS
     text = (tmp_path / "push_ceiling.md").read_text()
     assert "Written by `benchmarks/push_ceiling.py`" in text and "## Against the targets" in text
-    assert "## Without seeing the table" in text
+    assert "## Without seeing the table" in text and "12 hidden units" in text
 
 
 def test_placements_are_tried_in_order_and_the_first_one_taken_decides() -> None:
@@ -80,3 +83,41 @@ def test_a_placement_puts_the_object_where_it_says() -> None:
     rx, ry, _ = object_in_robot_frame(world["base_pose_world"], world["object_position_world"])
     assert math.remainder(pose[2] - 2.0 - math.atan2(ry, rx) - math.radians(30),
                           2 * math.pi) == pytest.approx(0.0)
+
+
+def test_a_margin_refuses_placements_that_push_only_when_exact() -> None:
+    """With a margin, a placement at the edge of the arm's reach, or whose base is just
+    clear of the table, no longer counts as pushing; one well inside still does."""
+    from skillcompose.robots.collision import BASE_HALF_EXTENTS_M
+    from skillcompose.skills.move_to_push import ARM_CODES, SAFETY_M, _classifier
+
+    side = -0.35  # to the robot's right, where the right arm reaches
+
+    def reached(x: float, y: float = side) -> bool:
+        return bool(_classifier().predict_one(np.array(
+            [x, y, OBJECT_Z, math.atan2(y, x), 0.0])) == ARM_CODES["right"])
+
+    xs = [round(0.3 + 0.01 * i, 2) for i in range(100)]
+    edge = max(x for x in xs if reached(x))  # the farthest point still reached
+    assert not reached(edge + 0.1)
+    inner = next(x for x in xs if all(reached(x + dx, side + dy) for dx, dy in (
+        (0, 0), (0.1, 0), (-0.1, 0), (0, 0.1), (0, -0.1))))
+    # a small table far behind the robot, which faces +x from the origin: every base clear
+    world = {"table_world": Box.table((-2.5, 0.0), (0.5, 0.5), 0.75),
+             "base_pose_world": (0.0, 0.0, 0.0), "object_position_world": (0.5, 0.0, OBJECT_Z)}
+    places = [(edge, side, 0.0, 0.0, "right"), (inner, side, 0.0, 0.0, "right")]
+    free, pushed = push_ceiling.blind_outcomes([world], places)
+    assert free[:, 0].tolist() == [True, True] and pushed[:, 0].tolist() == [True, True]
+    free, pushed = push_ceiling.blind_outcomes([world], places, margin=0.1)
+    assert free[:, 0].tolist() == [True, True] and pushed[:, 0].tolist() == [False, True]
+    # a table beside the base that ``inner`` puts, clear of its footprint by the safety
+    # distance and 2 cm, not by the margin as well
+    from skillcompose.skills.move_to_push import base_table_distance
+
+    bx, by, yaw = push_ceiling.placement_pose(world, places[1])
+    reach_y = BASE_HALF_EXTENTS_M[0] * (abs(math.sin(yaw)) + abs(math.cos(yaw)))
+    table = Box.table((bx, by - reach_y - SAFETY_M - 0.02 - 0.25), (0.5, 0.5), 0.75)
+    assert base_table_distance((bx, by, yaw), table) == pytest.approx(SAFETY_M + 0.02)
+    near = {**world, "table_world": table}
+    assert push_ceiling.blind_outcomes([near], [places[1]])[1].tolist() == [[True]]
+    assert push_ceiling.blind_outcomes([near], [places[1]], margin=0.1)[1].tolist() == [[False]]
