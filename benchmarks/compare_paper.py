@@ -366,6 +366,11 @@ def report(rows: list[Row], command: str, started: str, load_before: str, load_a
         "the task's rate: 0.9 for both); at most half the paper's episodes, every episode of "
         "the run counted (evaluations, confirmations, holds tests).",
         "",
+        "What each experiment is:",
+        "",
+        *[f"- **{e.name}**: {e.about}." for e in EXPERIMENTS.values()
+          if any(r.experiment == e.name for r in rows)],
+        "",
         "Each run's exported FSA (simplified, as written) is measured on 2,000 fresh abstract "
         "worlds no run drew, and on the PR2 model (the kinematic backend, the file unchanged): "
         "395 placements for push (the paper's real robot pushed 323/395 = 81.8 %), 100 scenes "
