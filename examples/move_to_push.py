@@ -77,7 +77,10 @@ Decisions where section 4.2 is vague (kept by the skills and by this task):
   object at a fixed point of the new robot frame) tried in order, each after the last
   failed, push in about 94 % of these worlds when taken exactly; the network, fitted to
   them by least squares, puts the base about 0.3 m off in one move from so far away (about
-  41 %), and a second MoveBase after the first corrects it.
+  41 %), and a second MoveBase after the first corrects it. With 12 hidden units in place of
+  the paper's 3 (``network=layered-12``, not the paper's) the fitted networks land within
+  0.03-0.13 m and push in about 76 %; evolved, that larger network did worse within half
+  the paper's episodes (``docs/results/paper_comparison.md``).
 - MoveBase fails when the base footprint at the new pose comes closer than 5 cm
   (:data:`~skillcompose.skills.move_to_push.SAFETY_M`) to the table's footprint (the
   navigation's safety distance; the paper blames most failures on the real robot on it) or
