@@ -38,9 +38,10 @@ from .budgets import checks_due, checks_episodes, next_generation, overrun, stop
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
 from .evaluation import EvalLimits
-from .export import SeedNames, exporter, finish, unchanged
+from .export import SeedNames, export_settings, exporter, finish, unchanged
 from .generation import cost, evaluate, record
 from .genome import Genome
+from .isolated import IsolatedChecks
 from .listeners import OnGeneration, RunDirWriter, RunListener
 from .operators import initialize
 from .plan import Plan, check_arguments, make_plan
@@ -140,6 +141,7 @@ def _evolve(
     run = RunState(plan.task, plan.cfg, plan.seed, plan.skills, rundir, plan.trials,
                    plan.record, seed_text=plan.seed_text)
     run.export = exporter(plan)
+    run.export_settings = export_settings(plan)
     if plan.seed_fsa is not None and plan.seed_genome is not None:
         run.seed_names = SeedNames(plan.seed_fsa, plan.seed_genome, run.compiler)
     fitness: list[float] | None = None
@@ -156,8 +158,16 @@ def _evolve(
         if rundir is not None:
             rundir.save_checkpoint(run.checkpoint())
     run.exported = False
-    fitness = _generations(run, plan, fitness, on_generation)
-    return finish(run, plan, fitness)
+    if plan.backend != "serial":  # the checks where the evaluations are: apart from the run
+        run.isolated = IsolatedChecks(plan.task, plan.skills)
+    try:
+        if run.isolated is not None:
+            run.isolated.start()
+        fitness = _generations(run, plan, fitness, on_generation)
+        return finish(run, plan, fitness)
+    finally:
+        if run.isolated is not None:
+            run.isolated.close()
 
 
 def _restore(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir) -> list[float] | None:
@@ -267,15 +277,14 @@ def _checks(run: RunState, fitness: list[float]) -> str | None:
     if over is not None:
         return over
     solved = confirm(run, fitness) if run.cfg.confirm_trials else True
-    if solved and run.cfg.require_holds and not run.faults().lost:
+    if solved and run.cfg.require_holds:
         solved = holds(run, fitness)
     return "solved" if solved else None
 
 
 def _check_not_all_lost(run: RunState) -> None:
     """Stop the run when every evaluation of the generation killed the worker running it:
-    the task does that (and would kill this process too, simplifying or checking the
-    result), so going on would only count deaths."""
+    the task does that, so going on would only count deaths."""
     faults = run.gen_faults
     if faults.jobs == 0 or faults.lost < faults.jobs:
         return

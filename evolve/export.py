@@ -136,17 +136,32 @@ class SeedNames:
         return in_layout_of(named, self.seed, unchanged & set(rename.values()), header)
 
 
-def exporter(plan: Plan) -> Callable[[FSA], FSA]:
-    """What the run writes for an evolved FSA: simplified (unless asked not to)."""
+ExportSettings = tuple[bool, int, int, "float | None"]
+"""What :func:`make_export` needs besides the task: whether to simplify, the run's seed,
+the simplification's trials and the time limit of an evaluation."""
+
+
+def make_export(task: Task, simplify_it: bool, seed: int, trials: int,
+                time_limit: float | None) -> Callable[[FSA], FSA]:
+    """What a run writes for an evolved FSA: simplified (unless ``simplify_it`` is false)."""
     def export(fsa: FSA) -> FSA:
         """The FSA the run writes for ``fsa``: simplified (unless asked not to)."""
-        if not plan.simplify:
+        if not simplify_it:
             return fsa
-        out = simplify(plan.task, fsa, seed=plan.seed, trials=plan.simplify_trials,
-                       time_limit=plan.cfg.eval_time_limit)
+        out = simplify(task, fsa, seed=seed, trials=trials, time_limit=time_limit)
         return out.replace(meta={**fsa.meta, **out.meta}, name=fsa.name)
 
     return export
+
+
+def export_settings(plan: Plan) -> ExportSettings:
+    """The :data:`ExportSettings` of ``plan``."""
+    return plan.simplify, plan.seed, plan.simplify_trials, plan.cfg.eval_time_limit
+
+
+def exporter(plan: Plan) -> Callable[[FSA], FSA]:
+    """What the run writes for an evolved FSA: simplified (unless asked not to)."""
+    return make_export(plan.task, *export_settings(plan))
 
 
 def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionResult:
@@ -160,17 +175,24 @@ def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionR
     best_genome, best_f, _ = run.best
     evolved = best_fsa(run)
     best = evolved
-    lost = run.faults().lost
     simplify_result, check_used = plan.simplify, plan.check_trials
-    if lost and (simplify_result or check_used > 0):
-        _skipped(task, lost)
-        simplify_result, check_used = False, 0
+    # a task that kills a worker can end a process; only the process and Ray backends have
+    # workers, and there the checks run in a child of their own (run.isolated)
+    exported = True  # best is the FSA the run would export (the one a holds test checks)
     if simplify_result:
-        best = run.export(evolved)
+        if run.isolated is None:
+            best = run.export(evolved)
+        else:
+            got = run.isolated.call(export_in, run.export_settings, evolved)
+            if got is None:  # the task killed the process simplifying: nothing more here
+                _died(run, "simplification and the fresh-episode check are skipped; "
+                      "best.yaml is the evolved FSA")
+                check_used, exported = 0, False
+            best = evolved if got is None else got
     evolved, best = named(run, evolved), named(run, best)
-    # with require_holds, solved is the statement of the holds test (unless a worker was
-    # killed: then the test, which runs the task in this process, was not run)
-    solved_by = "holds" if cfg.require_holds and not lost else "evaluation"
+    # with require_holds, solved is the statement of the holds test, unless its FSA is not
+    # the one written (the simplification's process was killed)
+    solved_by = "holds" if cfg.require_holds and exported else "evaluation"
     solved = task.solved(best_f) and (solved_by == "evaluation" or run.holds_passed is not None)
     solved = solved and not run.checks_pending  # its checks did not fit in the budget
     fresh = _fresh(run, best, best_f, solved and solved_by == "holds", check_used)
@@ -213,16 +235,6 @@ def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionR
     )
 
 
-def _skipped(task: Task, lost: int) -> None:
-    """Say that the end of the run skips simplification and the fresh-episode check."""
-    # simplification and the fresh check run the task here, in the evolving process,
-    # which a task that kills its worker would end without a word (and again on resume)
-    print(f"warning: {lost} evaluation(s) of this run killed the worker process running "
-          f"them (os._exit in task {task.name} or a skill, a crash in C code): "
-          "simplification and the fresh-episode check, which would run the task in this "
-          "process, are skipped; best.yaml is the evolved FSA", file=sys.stderr)
-
-
 def _fresh(run: RunState, best: FSA, best_f: float, held: bool,
            check_trials: int) -> dict[str, Any]:
     """The exported FSA on fresh episodes: the holds test's when it ``held`` (and so
@@ -233,11 +245,39 @@ def _fresh(run: RunState, best: FSA, best_f: float, held: bool,
         fresh = {**run.holds_passed["fresh"], "differs": False}
     elif check_trials > 0:
         task, cfg = run.task, run.cfg
-        fresh = check_fresh(task, best, run.seed, check_trials, cfg.eval_time_limit,
-                            required=required_rate(task, cfg),
-                            confidence=cfg.holds_confidence)
-        fresh["differs"] = fresh_differs(task, best_f, fresh["mean_fitness"])
+        args = (best, run.seed, check_trials, cfg.eval_time_limit, required_rate(task, cfg),
+                cfg.holds_confidence)
+        got = run.isolated.call(fresh_in, *args) if run.isolated is not None else \
+            fresh_in(task, run.compiler, *args)
+        if got is None:
+            _died(run, "the fresh-episode check is skipped")
+            return {}
+        fresh = {**got, "differs": fresh_differs(task, best_f, got["mean_fitness"])}
     return fresh
+
+
+def export_in(task: Task, compiler: GenomeCompiler, settings: ExportSettings, fsa: FSA) -> FSA:
+    """What the run writes for ``fsa`` (:func:`make_export`), where the checks run
+    (:mod:`.isolated`)."""
+    return make_export(task, *settings)(fsa)
+
+
+def fresh_in(task: Task, compiler: GenomeCompiler, fsa: FSA, seed: int, trials: int,
+             time_limit: float | None, required: float, confidence: float) -> dict[str, Any]:
+    """The final fresh-episode check of ``fsa`` (:func:`~.holds.check_fresh`), where the
+    checks run (:mod:`.isolated`)."""
+    return check_fresh(task, fsa, seed, trials, time_limit, required=required,
+                       confidence=confidence)
+
+
+def _died(run: RunState, skipped: str) -> None:
+    """Say that a check at the end of the run killed the process running it, and count
+    it as lost."""
+    from .evaluation import Faults
+
+    run.note_check_faults(Faults(jobs=1, failed=1, lost=1))
+    print(f"warning: the end of the run killed the process running task {run.task.name} "
+          f"(os._exit in the task or a skill, a crash in C code): {skipped}", file=sys.stderr)
 
 
 def _write_final(run: RunState, fitness: list[float], evolved: FSA, best: FSA,
@@ -253,7 +293,7 @@ def _write_final(run: RunState, fitness: list[float], evolved: FSA, best: FSA,
     run.exported = True  # last: a kill before this redoes only the exports
     rundir.save_checkpoint({**run.checkpoint(fitness),
                             "best_yaml": dumps_fsa(best, task.registry, header=header(run)),
-                            "fresh": result["fresh"]})
+                            "fresh": result["fresh"], "solved_by": result["solved_by"]})
     return [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
             rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
 
@@ -269,7 +309,10 @@ def unchanged(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir,
     best = loads_fsa(text, str(rundir.checkpoint)) if isinstance(text, str) else evolved
     fresh = checkpoint.get("fresh")
     g, f, _ = run.best
-    solved_by = "holds" if run.cfg.require_holds and not run.faults().lost else "evaluation"
+    solved_by = checkpoint.get("solved_by")  # as the run's end decided (older: recomputed)
+    if solved_by not in ("holds", "evaluation"):
+        solved_by = "holds" if run.cfg.require_holds and not run.faults().lost else \
+            "evaluation"
     solved = run.task.solved(f) and (solved_by == "evaluation" or run.holds_passed is not None)
     solved = solved and not run.checks_pending
     restored: list[Path] = []

@@ -11,14 +11,18 @@ mean, and it is never checked again.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from skillcompose import FSA
+from skillcompose.stats import SequentialRateTest
+from skillcompose.task import Task
 
 from .evaluation import Faults, Guard, error_summary, iter_episodes
-from .genome import Genome
+from .export import ExportSettings, make_export
+from .genome import Genome, GenomeCompiler
 from .holds import FreshCheck, holds_test, required_rate
 from .state import CONFIRM_STREAM, RunState, fold
 
@@ -65,25 +69,42 @@ def confirmation(run: RunState, g: Genome, worlds: tuple[int, ...]) -> tuple[boo
     faults (:attr:`RunState.check_faults`)."""
     task, rate = run.task, run.cfg.confirm_rate
     trials = 1 if task.deterministic else run.cfg.confirm_trials
-    scores: list[float] = []
-    faults = Faults()
-    seq = np.random.SeedSequence(run.seed, spawn_key=worlds)
-    try:
-        compiled = run.compiler.compile(g)
-    except Exception as exc:  # the genome compiled for its evaluation; a skill's factory
-        scores = [task.worst] * trials  # that fails now fails every episode
-        faults.raised, faults.first_error = trials, error_summary(exc)
+    args = (g, run.seed, worlds, trials, run.cfg.eval_time_limit)
+    got = run.isolated.call(confirmation_episodes, *args) if run.isolated is not None else \
+        confirmation_episodes(task, run.compiler, *args)
+    if got is None:  # the check killed the process running it: worst, and counted
+        scores, faults = [task.worst] * trials, Faults(jobs=1, failed=1, lost=1)
     else:
-        with Guard(run.cfg.eval_time_limit) as guard:
-            for f, code in iter_episodes(task, compiled, seq, trials, guard):
-                faults.add_episode(code)
-                scores.append(f)
+        scores, faults = got
     run.note_check_faults(faults)
     run.evaluations += trials
     mean = sum(scores) / trials
     if rate > 0.0 and not task.deterministic:
         return sum(map(task.solved, scores)) >= rate * trials, mean, trials
     return task.solved(mean), mean, trials
+
+
+def confirmation_episodes(
+    task: Task, compiler: GenomeCompiler, g: Genome, seed: int, worlds: tuple[int, ...],
+    trials: int, time_limit: float | None,
+) -> tuple[list[float], Faults]:
+    """The episodes of a confirmation (:func:`confirmation`): ``g``'s fitness on ``trials``
+    worlds of the stream ``worlds`` of ``seed``, and their faults. The same wherever it
+    runs (:mod:`.isolated`)."""
+    scores: list[float] = []
+    faults = Faults()
+    seq = np.random.SeedSequence(seed, spawn_key=worlds)
+    try:
+        compiled = compiler.compile(g)
+    except Exception as exc:  # the genome compiled for its evaluation; a skill's factory
+        scores = [task.worst] * trials  # that fails now fails every episode
+        faults.raised, faults.first_error = trials, error_summary(exc)
+    else:
+        with Guard(time_limit) as guard:
+            for f, code in iter_episodes(task, compiled, seq, trials, guard):
+                faults.add_episode(code)
+                scores.append(f)
+    return scores, faults
 
 
 def confirm_candidates(run: RunState, fitness: list[float]) -> bool:
@@ -171,24 +192,48 @@ def holds_check(run: RunState, g: Genome, k: int) -> FreshCheck:
     """Whether ``g`` holds: its FSA as evolved first (an FSA far below the bar fails in
     a few episodes), then, if it held, the FSA the run would export, on other worlds:
     that second check is the statement."""
-    cfg = run.cfg
-
-    def test(fsa: FSA, stream: int) -> FreshCheck:
-        return holds_test(run.task, fsa, run.seed, (run.generation, stream),
-                          required_rate(run.task, cfg), confidence=cfg.holds_confidence,
-                          max_episodes=cfg.holds_max_episodes,
-                          time_limit=cfg.eval_time_limit)
-
-    def counted(check: FreshCheck) -> FreshCheck:
+    cfg, task = run.cfg, run.task
+    args = (g, run.seed, (run.generation, 2 * k), required_rate(task, cfg),
+            cfg.holds_confidence, cfg.holds_max_episodes, cfg.eval_time_limit)
+    if run.isolated is not None:
+        got = run.isolated.call(holds_checks, run.export_settings, *args)
+    else:
+        got = holds_checks(task, run.compiler, run.export, *args)
+    if got is None:  # the check killed the process running it: failed, and counted
+        run.note_check_faults(Faults(jobs=1, failed=1, lost=1))
+        return FreshCheck(SequentialRateTest(required_rate(task, cfg),
+                                             confidence=cfg.holds_confidence,
+                                             deterministic=task.deterministic).result(),
+                          task.worst, 0, 0, run.seed, "holds", task.deterministic)
+    for check in got:
         run.evaluations += check.episodes
         run.note_check_faults(Faults(raised=check.raised, timeouts=check.timeouts))
-        return check
+    return got[-1]
 
-    evolved = run.compiler.fsa(g, name=f"{run.task.name}_evolved")
-    first = counted(test(evolved, 2 * k))
+
+def holds_checks(
+    task: Task, compiler: GenomeCompiler, export: Callable[[FSA], FSA] | ExportSettings,
+    g: Genome, seed: int, key: tuple[int, int], required: float, confidence: float,
+    max_episodes: int, time_limit: float | None,
+) -> list[FreshCheck]:
+    """The holds tests of :func:`holds_check`: ``g``'s FSA as evolved on the worlds of
+    stream ``key`` of ``seed``, then, if it held, the FSA ``export`` makes of it on the
+    next stream (``export`` a function, or the settings :func:`~.export.make_export`
+    makes one of). The same wherever it runs (:mod:`.isolated`)."""
+    if not callable(export):
+        export = make_export(task, *export)
+    generation, stream = key
+
+    def test(fsa: FSA, stream: int) -> FreshCheck:
+        return holds_test(task, fsa, seed, (generation, stream), required,
+                          confidence=confidence, max_episodes=max_episodes,
+                          time_limit=time_limit)
+
+    evolved = compiler.fsa(g, name=f"{task.name}_evolved")
+    first = test(evolved, stream)
     if not first.passed:
-        return first
-    return counted(test(run.export(evolved), 2 * k + 1))
+        return [first]
+    return [first, test(export(evolved), stream + 1)]
 
 
 def demote(run: RunState, g: Genome, fitness: list[float], evaluated: float, mean: float,

@@ -26,7 +26,8 @@ from .genome import Genome, GenomeCompiler, SkillSet
 from .result import GenerationRecord
 
 if TYPE_CHECKING:
-    from .export import SeedNames
+    from .export import ExportSettings, SeedNames
+    from .isolated import IsolatedChecks
     from .rundir import RunDir
 
 __all__ = ["BREED_STREAM", "CONFIRM_STREAM", "EVAL_STREAM", "RunState", "fold"]
@@ -120,6 +121,10 @@ class RunState:
         self.checks_pending = False
         self.stopped_by = ""  # what ended the run: "solved" or a budget's name (budgets.py)
         self.export: Callable[[FSA], FSA] = lambda fsa: fsa  # what the run would write
+        self.export_settings: ExportSettings = (False, seed, 0, None)  # export's, for a child
+        # where the checks run the task: a child process (process and Ray backends), so
+        # that a task ending its process cannot end the run; None: this process
+        self.isolated: IsolatedChecks | None = None
         self.evaluations = 0  # episodes: evaluations', confirmations' and holds tests'
         self.wall_before = 0.0
         self.next_uid = 0

@@ -25,6 +25,7 @@ from skillcompose.evolve.serial import SerialEvaluator
 from skillcompose.task import Task, load_task
 
 FAULTY = "tests.evolve.faulty_task"
+MAIN_PID = os.getpid()
 TOY_SOLUTION = Path(__file__).parent / "data" / "toy_solution.yaml"
 SMALL = EvolutionConfig(population=16, generations=2, initial_nodes=4)
 
@@ -611,12 +612,14 @@ def test_the_fresh_check_warning_suggests_leaving_the_paper_preset() -> None:
     assert "--trials" not in _hold_hint(EvolutionConfig(trials=5), task)
 
 
-def test_a_run_whose_task_sometimes_kills_its_worker_finishes_without_the_end_in_process(
+def test_a_run_whose_task_sometimes_kills_its_process_finishes_and_counts_it(
     tmp_path: Path,
 ) -> None:
-    """Simplification and the fresh check run the task in the evolving process, which such a
-    task ended without a word (status 3, and again on every resume); they are skipped, said
-    in one line. In a process of its own: a regression would end this one."""
+    """Confirmations, holds tests, simplification and the fresh check run the task too; in
+    the evolving process such a task ended the run without a word (status 3, and again on
+    every resume). On the process backend they run in a child of their own: a check that
+    kills it fails and counts as lost, and the run finishes. In a process of its own: a
+    regression would end this one."""
     import subprocess
     import sys
 
@@ -629,13 +632,32 @@ def test_a_run_whose_task_sometimes_kills_its_worker_finishes_without_the_end_in
          "sys.exit(main(sys.argv[1:]))", *args],
         capture_output=True, text=True, timeout=300, check=False)
     assert done.returncode in (0, 1), done.stderr[-2000:]
-    assert "killed the worker process running them" in done.stderr
-    assert "simplification and the fresh-episode check, which would run the task in this " \
-        "process, are skipped" in done.stderr
+    assert "Traceback" not in done.stderr
     assert (d / "best.yaml").is_file() and (d / "best_evolved.yaml").is_file()
-    lost = sum(json.loads(line)["faults"]["lost"]
-               for line in (d / "history.jsonl").read_text().splitlines())
-    assert lost > 0
+    result = json.loads((d / "run.json").read_text())["result"]
+    per_generation = sum(json.loads(line)["faults"]["lost"]
+                         for line in (d / "history.jsonl").read_text().splitlines())
+    assert per_generation > 0 and result["faults"]["lost"] >= per_generation
+
+
+def test_a_check_that_kills_its_process_returns_none_and_the_next_one_runs() -> None:
+    from skillcompose.evolve.isolated import IsolatedChecks
+
+    task = load_task("examples.toy_task")
+    checks = IsolatedChecks(task, SkillSet.from_task(task))
+    try:
+        assert checks.call(_in_child, False) == ("toy_fetch", True)
+        assert checks.call(_in_child, True) is None and checks.deaths == 1
+        assert checks.call(_in_child, False) == ("toy_fetch", True)  # a new child
+    finally:
+        checks.close()
+
+
+def _in_child(task: Task, compiler: Any, die: bool) -> tuple[str, bool]:
+    """What :class:`IsolatedChecks` runs: the task's name, and whether it ran in a child."""
+    if die:
+        os._exit(3)
+    return task.name, os.getpid() != MAIN_PID
 
 
 @pytest.mark.parametrize(("solved", "warned"), [(True, True), (False, False)])
