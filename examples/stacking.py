@@ -36,8 +36,8 @@ Settings (``make_task(**settings)``, ``--set name=value``):
 - ``step_limit`` (default 15, the paper's).
 - ``move_to_reach``: the MoveToReach FSA file (default ``examples/move_to_reach.fsa.yaml``
   beside this module); any valid evolved move-to-push FSA for the layered network.
-- ``network`` (``layered``, default, ``recurrent`` or ``layered-12``): the topology MoveToReach's file was
-  evolved with.
+- ``network`` (``layered``, default, ``recurrent`` or ``layered-12``): the topology
+  MoveToReach's file was evolved with.
 - ``world`` (``facing``, default, or ``paper``): where the robot and the objects start and
   whether MoveToReach may skip its FSA (below). ``facing`` is the world this task has always
   drawn (the same seed gives the same worlds); ``paper`` follows sections 4.3 and 4.2 as
