@@ -60,9 +60,10 @@ def test_the_wider_layered_network_has_twelve_hidden_units() -> None:
     second = w[72:].reshape(5, 13)
     hidden = 1 / (1 + np.exp(-(first[:, :5] @ x + first[:, 5])))
     expected = 1 / (1 + np.exp(-(second[:, :12] @ hidden + second[:, 12])))
-    assert np.allclose(make_network("layered-12", w)(x, np.random.default_rng(0)), expected)
+    out = make_network("layered-12", w.tolist())(x, np.random.default_rng(0))
+    assert np.allclose(out, expected)
     with pytest.raises(ValueError, match="a layered 5-12-5 network has 137 weights, got 38"):
-        make_network("layered-12", w[:38])
+        make_network("layered-12", w[:38].tolist())
 
 
 def test_the_recurrent_network_updates_synchronously_from_a_random_state() -> None:
