@@ -39,31 +39,25 @@ def test_outputs_are_in_the_unit_interval_and_reproducible(topology: str) -> Non
         assert np.array_equal(a, b)  # the same generator state, the same answer
 
 
-def test_the_layered_network_is_the_formula() -> None:
+@pytest.mark.parametrize(("topology", "hidden"), [("layered", 3), ("layered-12", 12)])
+def test_the_layered_networks_are_the_formula(topology: str, hidden: int) -> None:
     rng = np.random.default_rng(1)
-    w = rng.uniform(-3, 3, 38)
+    n1 = hidden * 6
+    w = rng.uniform(-3, 3, n1 + 5 * (hidden + 1))
     x = rng.uniform(-1, 1, 5)
-    first = w[:18].reshape(3, 6)
-    second = w[18:].reshape(5, 4)
-    hidden = 1 / (1 + np.exp(-(first[:, :5] @ x + first[:, 5])))
-    expected = 1 / (1 + np.exp(-(second[:, :3] @ hidden + second[:, 3])))
-    out = LayeredNetwork(w)(x, np.random.default_rng(0))
+    first = w[:n1].reshape(hidden, 6)
+    second = w[n1:].reshape(5, hidden + 1)
+    z = 1 / (1 + np.exp(-(first[:, :5] @ x + first[:, 5])))
+    expected = 1 / (1 + np.exp(-(second[:, :hidden] @ z + second[:, hidden])))
+    net = make_network(topology, w.tolist())  # type: ignore[arg-type]
+    out = net(x, np.random.default_rng(0))
     assert np.allclose(out, expected)
-    assert np.array_equal(out, LayeredNetwork(w)(x, np.random.default_rng(99)))  # no draws
-
-
-def test_the_wider_layered_network_has_twelve_hidden_units() -> None:
-    rng = np.random.default_rng(3)
-    w = rng.uniform(-3, 3, 137)
-    x = rng.uniform(-1, 1, 5)
-    first = w[:72].reshape(12, 6)
-    second = w[72:].reshape(5, 13)
-    hidden = 1 / (1 + np.exp(-(first[:, :5] @ x + first[:, 5])))
-    expected = 1 / (1 + np.exp(-(second[:, :12] @ hidden + second[:, 12])))
-    out = make_network("layered-12", w.tolist())(x, np.random.default_rng(0))
-    assert np.allclose(out, expected)
-    with pytest.raises(ValueError, match="a layered 5-12-5 network has 137 weights, got 38"):
-        make_network("layered-12", w[:38].tolist())
+    assert np.array_equal(out, net(x, np.random.default_rng(99)))  # no draws
+    if topology == "layered":
+        assert np.array_equal(out, LayeredNetwork(w)(x, np.random.default_rng(0)))
+    with pytest.raises(ValueError, match=f"a layered 5-{hidden}-5 network has {w.size} "
+                       f"weights, got {w.size - 1}"):
+        make_network(topology, w[:-1].tolist())  # type: ignore[arg-type]
 
 
 def test_the_recurrent_network_updates_synchronously_from_a_random_state() -> None:
