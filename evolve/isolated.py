@@ -6,10 +6,10 @@ kills its worker (``os._exit``, a crash in C code) costs that job alone. The che
 candidate solution (its confirmation, the holds test, the simplification of the FSA the
 run would write and the final fresh-episode check) run the task too, and in the evolving
 process they would take the whole run down with them, without a word, and again on every
-resume. On those backends they run here instead: one child process, started on the first
-check, holding the task (rebuilt from its module and settings, as a pool worker does) and
-its genome compiler. A check that kills the child returns ``None``: its caller scores it
-as failed and counts it as ``lost``, and the next check starts a new child.
+resume. On those backends they run here instead: one child process, started with the run,
+holding the task (rebuilt from its module and settings, as a pool worker does) and its
+genome compiler. A check that kills the child returns ``None``: its caller scores it as
+failed and counts it as ``lost``, and the next check starts a new child.
 
 The checks are the same functions on every backend (the serial backend calls them in the
 evolving process), drawing the same worlds from the same seeds, so a run is the same
@@ -57,34 +57,37 @@ class IsolatedChecks:
 
     def __init__(self, task: Task, skills: SkillSet) -> None:
         methods = multiprocessing.get_all_start_methods()
+        # the first child is forked (fast, and a task built in Python needs it); one that
+        # replaces a dead child is spawned when the task can be rebuilt from its module,
+        # because the run's threads are running by then, and a child forked while another
+        # thread holds a lock can wait for it for ever
         self._ctx: Any = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+        self._again: Any = multiprocessing.get_context(
+            "spawn" if task.ref is not None or "fork" not in methods else "fork")
         self._source: TaskRef | Task = task.ref if task.ref is not None else task
         self._shape = skills.shape
         self._pool: ProcessPoolExecutor | None = None
         self.deaths = 0  # checks that killed the child
 
-    def start(self) -> None:
-        """Start the child now, if there is none. Forked from a process whose other threads
-        (a progress bar's, a pool's) might hold a lock, a child can wait for it for ever: so
-        the run starts it before it starts any thread, and again after a death only from a
-        call (the run's threads are running then, so a new child is spawned, not forked, when
-        the task can be rebuilt from its module)."""
+    def _open(self) -> ProcessPoolExecutor:
         if self._pool is None:
             self._pool = ProcessPoolExecutor(
-                1, mp_context=self._ctx, initializer=_start,
+                1, mp_context=self._again if self.deaths else self._ctx, initializer=_start,
                 initargs=(self._source, self._shape, os.getpid()))
-            self._pool.submit(int).result()
+        return self._pool
+
+    def start(self) -> None:
+        """Start the child now, before the run starts any thread (a progress bar's, a
+        pool's); :meth:`call` starts one otherwise."""
+        self._open().submit(int).result()
 
     def call(self, fn: Callable[..., T], *args: Any) -> T | None:
         """``fn(task, compiler, *args)`` in the child; None when the child died running it
         (a new one starts for the next call). ``fn`` must be a module-level function and
         catch its own episodes' faults, as :func:`~.evaluation.iter_episodes` does."""
-        if self._pool is None:
-            self._pool = ProcessPoolExecutor(
-                1, mp_context=self._ctx, initializer=_start,
-                initargs=(self._source, self._shape, os.getpid()))
+        pool = self._open()
         try:
-            return self._pool.submit(_call, fn, args).result()
+            return pool.submit(_call, fn, args).result()
         except BrokenProcessPool:
             self.deaths += 1
             self.close()
