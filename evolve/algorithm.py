@@ -38,7 +38,7 @@ from .budgets import checks_due, checks_episodes, next_generation, overrun, stop
 from .config import EvolutionConfig
 from .errors import CheckpointError, EvolutionError
 from .evaluation import EvalLimits
-from .export import SeedNames, export_settings, exporter, finish, unchanged
+from .export import SeedNames, export_settings, finish, unchanged
 from .generation import cost, evaluate, record
 from .genome import Genome
 from .isolated import IsolatedChecks
@@ -140,7 +140,6 @@ def _evolve(
         rundir.create(plan.info)
     run = RunState(plan.task, plan.cfg, plan.seed, plan.skills, rundir, plan.trials,
                    plan.record, seed_text=plan.seed_text)
-    run.export = exporter(plan)
     run.export_settings = export_settings(plan)
     if plan.seed_fsa is not None and plan.seed_genome is not None:
         run.seed_names = SeedNames(plan.seed_fsa, plan.seed_genome, run.compiler)

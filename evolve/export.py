@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from .plan import Plan
     from .rundir import RunDir
 
-__all__ = ["SeedNames", "best_fsa", "exporter", "finish", "header", "named", "run_command",
+__all__ = ["SeedNames", "best_fsa", "finish", "header", "named", "run_command",
            "unchanged"]
 
 
@@ -159,11 +159,6 @@ def export_settings(plan: Plan) -> ExportSettings:
     return plan.simplify, plan.seed, plan.simplify_trials, plan.cfg.eval_time_limit
 
 
-def exporter(plan: Plan) -> Callable[[FSA], FSA]:
-    """What the run writes for an evolved FSA: simplified (unless asked not to)."""
-    return make_export(plan.task, *export_settings(plan))
-
-
 def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionResult:
     """The end of a run: its last checkpoint, its best FSA as evolved and as exported (both
     named), whether it solved the task, the exported FSA on fresh episodes, the run
@@ -180,15 +175,12 @@ def finish(run: RunState, plan: Plan, fitness: list[float] | None) -> EvolutionR
     # workers, and there the checks run in a child of their own (run.isolated)
     exported = True  # best is the FSA the run would export (the one a holds test checks)
     if simplify_result:
-        if run.isolated is None:
-            best = run.export(evolved)
-        else:
-            got = run.isolated.call(export_in, run.export_settings, evolved)
-            if got is None:  # the task killed the process simplifying: nothing more here
-                _died(run, "simplification and the fresh-episode check are skipped; "
-                      "best.yaml is the evolved FSA")
-                check_used, exported = 0, False
-            best = evolved if got is None else got
+        got = run.check(export_in, run.export_settings, evolved)
+        if got is None:  # the task killed the process simplifying: nothing more here
+            _died(run, "simplification and the fresh-episode check are skipped; "
+                  "best.yaml is the evolved FSA")
+            check_used, exported = 0, False
+        best = evolved if got is None else got
     evolved, best = named(run, evolved), named(run, best)
     # with require_holds, solved is the statement of the holds test, unless its FSA is not
     # the one written (the simplification's process was killed)
@@ -245,10 +237,8 @@ def _fresh(run: RunState, best: FSA, best_f: float, held: bool,
         fresh = {**run.holds_passed["fresh"], "differs": False}
     elif check_trials > 0:
         task, cfg = run.task, run.cfg
-        args = (best, run.seed, check_trials, cfg.eval_time_limit, required_rate(task, cfg),
-                cfg.holds_confidence)
-        got = run.isolated.call(fresh_in, *args) if run.isolated is not None else \
-            fresh_in(task, run.compiler, *args)
+        got = run.check(fresh_in, best, run.seed, check_trials, cfg.eval_time_limit,
+                        required_rate(task, cfg), cfg.holds_confidence)
         if got is None:
             _died(run, "the fresh-episode check is skipped")
             return {}
@@ -271,11 +261,8 @@ def fresh_in(task: Task, compiler: GenomeCompiler, fsa: FSA, seed: int, trials: 
 
 
 def _died(run: RunState, skipped: str) -> None:
-    """Say that a check at the end of the run killed the process running it, and count
-    it as lost."""
-    from .evaluation import Faults
-
-    run.note_check_faults(Faults(jobs=1, failed=1, lost=1))
+    """Say that a check at the end of the run killed the process running it (counted by
+    :meth:`RunState.check`)."""
     print(f"warning: the end of the run killed the process running task {run.task.name} "
           f"(os._exit in the task or a skill, a crash in C code): {skipped}", file=sys.stderr)
 

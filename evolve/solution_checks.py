@@ -11,7 +11,6 @@ mean, and it is never checked again.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -69,14 +68,13 @@ def confirmation(run: RunState, g: Genome, worlds: tuple[int, ...]) -> tuple[boo
     faults (:attr:`RunState.check_faults`)."""
     task, rate = run.task, run.cfg.confirm_rate
     trials = 1 if task.deterministic else run.cfg.confirm_trials
-    args = (g, run.seed, worlds, trials, run.cfg.eval_time_limit)
-    got = run.isolated.call(confirmation_episodes, *args) if run.isolated is not None else \
-        confirmation_episodes(task, run.compiler, *args)
-    if got is None:  # the check killed the process running it: worst, and counted
-        scores, faults = [task.worst] * trials, Faults(jobs=1, failed=1, lost=1)
+    got = run.check(confirmation_episodes, g, run.seed, worlds, trials,
+                    run.cfg.eval_time_limit)
+    if got is None:  # the check killed the process running it: worst (counted by check)
+        scores = [task.worst] * trials
     else:
         scores, faults = got
-    run.note_check_faults(faults)
+        run.note_check_faults(faults)
     run.evaluations += trials
     mean = sum(scores) / trials
     if rate > 0.0 and not task.deterministic:
@@ -193,14 +191,10 @@ def holds_check(run: RunState, g: Genome, k: int) -> FreshCheck:
     a few episodes), then, if it held, the FSA the run would export, on other worlds:
     that second check is the statement."""
     cfg, task = run.cfg, run.task
-    args = (g, run.seed, (run.generation, 2 * k), required_rate(task, cfg),
-            cfg.holds_confidence, cfg.holds_max_episodes, cfg.eval_time_limit)
-    if run.isolated is not None:
-        got = run.isolated.call(holds_checks, run.export_settings, *args)
-    else:
-        got = holds_checks(task, run.compiler, run.export, *args)
-    if got is None:  # the check killed the process running it: failed, and counted
-        run.note_check_faults(Faults(jobs=1, failed=1, lost=1))
+    got = run.check(holds_checks, run.export_settings, g, run.seed, (run.generation, 2 * k),
+                    required_rate(task, cfg), cfg.holds_confidence, cfg.holds_max_episodes,
+                    cfg.eval_time_limit)
+    if got is None:  # the check killed the process running it: failed (counted by check)
         return FreshCheck(SequentialRateTest(required_rate(task, cfg),
                                              confidence=cfg.holds_confidence,
                                              deterministic=task.deterministic).result(),
@@ -212,16 +206,14 @@ def holds_check(run: RunState, g: Genome, k: int) -> FreshCheck:
 
 
 def holds_checks(
-    task: Task, compiler: GenomeCompiler, export: Callable[[FSA], FSA] | ExportSettings,
+    task: Task, compiler: GenomeCompiler, export: ExportSettings,
     g: Genome, seed: int, key: tuple[int, int], required: float, confidence: float,
     max_episodes: int, time_limit: float | None,
 ) -> list[FreshCheck]:
     """The holds tests of :func:`holds_check`: ``g``'s FSA as evolved on the worlds of
     stream ``key`` of ``seed``, then, if it held, the FSA ``export`` makes of it on the
-    next stream (``export`` a function, or the settings :func:`~.export.make_export`
-    makes one of). The same wherever it runs (:mod:`.isolated`)."""
-    if not callable(export):
-        export = make_export(task, *export)
+    next stream (``export``: :func:`~.export.make_export`'s settings). The same wherever it
+    runs (:mod:`.isolated`)."""
     generation, stream = key
 
     def test(fsa: FSA, stream: int) -> FreshCheck:
@@ -233,7 +225,7 @@ def holds_checks(
     first = test(evolved, stream)
     if not first.passed:
         return [first]
-    return [first, test(export(evolved), stream + 1)]
+    return [first, test(make_export(task, *export)(evolved), stream + 1)]
 
 
 def demote(run: RunState, g: Genome, fitness: list[float], evaluated: float, mean: float,

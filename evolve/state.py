@@ -11,11 +11,10 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from skillcompose import FSA
 from skillcompose.checks import is_real, is_whole, whole_in
 from skillcompose.task import Task
 
@@ -31,6 +30,8 @@ if TYPE_CHECKING:
     from .rundir import RunDir
 
 __all__ = ["BREED_STREAM", "CONFIRM_STREAM", "EVAL_STREAM", "RunState", "fold"]
+
+T = TypeVar("T")
 
 # The streams of the run's seed, ``SeedSequence(seed, spawn_key=(stream, ...))``; the final
 # fresh check and the holds test draw from streams 3 and 4 (see holds.py).
@@ -120,8 +121,8 @@ class RunState:
         # not fit in the episode budget: an extended run runs them first
         self.checks_pending = False
         self.stopped_by = ""  # what ended the run: "solved" or a budget's name (budgets.py)
-        self.export: Callable[[FSA], FSA] = lambda fsa: fsa  # what the run would write
-        self.export_settings: ExportSettings = (False, seed, 0, None)  # export's, for a child
+        # what the run would write for an evolved FSA (export.make_export's settings)
+        self.export_settings: ExportSettings = (False, seed, 0, None)
         # where the checks run the task: a child process (process and Ray backends), so
         # that a task ending its process cannot end the run; None: this process
         self.isolated: IsolatedChecks | None = None
@@ -299,6 +300,17 @@ class RunState:
         total.add(self.check_faults)
         total.first_error = self.first_error
         return total
+
+    def check(self, fn: Callable[..., T], *args: Any) -> T | None:
+        """``fn(task, compiler, *args)``, a check of a candidate: in the checks' child
+        process when there is one (:mod:`.isolated`), else here. None when it killed the
+        child: counted as a lost job of the checks."""
+        if self.isolated is None:
+            return fn(self.task, self.compiler, *args)
+        got = self.isolated.call(fn, *args)
+        if got is None:
+            self.note_check_faults(Faults(jobs=1, failed=1, lost=1))
+        return got
 
     def note_check_faults(self, faults: Faults) -> None:
         """Count the faults of a confirmation's or a holds test's episodes in the run's."""
