@@ -155,6 +155,19 @@ placement still pushes (:func:`blind_outcomes`) [m]: one fitted network lands wi
 centimetres, and placements chosen for exact moves sit at the edge of the arm's reach."""
 
 
+STAGE_AHEAD_M = 1.6
+"""A *staging* move puts the object this far ahead of the base, on the line from the robot to
+the object [m]: far enough from the table that the coarse move seldom lands on it."""
+STAGE_TURNS_DEG = (0, 180)
+"""The staging moves tried in order: the near side of the object, then the far side."""
+STAGED_STEPS = 6
+"""Placements tried in order after a staging move, at most."""
+STAGED_MARGIN_M = 0.05
+"""The margin the placements after a staging move are chosen with (:func:`blind_outcomes`)
+[m]. The staging constants were chosen in short exploratory runs (300 and 1,000 worlds of
+``seed + 2``); the page measures them on worlds of ``seed + 3``, which no choice saw."""
+
+
 def placements() -> list[tuple[float, float, float, float, str]]:
     """Every placement searched: (ahead [m], side [m], turn [rad], torso [m], arm)."""
     from skillcompose.skills.move_to_push import TORSO_RANGE_M
@@ -265,7 +278,8 @@ def fit_network(worlds: list[dict[str, Any]],
     each robot of ``worlds`` exactly to ``place``, and the root mean square error of the
     base's position that remains [m]. By CasADi's IPOPT from a fixed start, so the same
     worlds give the same weights; the larger network is given more iterations (1000
-    against 400) to converge."""
+    against 400) to converge. A world's ``torso_m`` (where a move before left the torso;
+    0 when absent) is the network's torso input."""
     import casadi as ca
 
     from skillcompose.skills.move_to_push import BASE_STEP_M, network_inputs, object_in_robot_frame
@@ -273,7 +287,8 @@ def fit_network(worlds: list[dict[str, Any]],
 
     n_hidden = HIDDEN[topology]
     inputs = np.array([network_inputs(object_in_robot_frame(
-        w["base_pose_world"], w["object_position_world"]), 0.0) for w in worlds]).T
+        w["base_pose_world"], w["object_position_world"]), w.get("torso_m", 0.0))
+        for w in worlds]).T
     target = np.array([ideal_outputs(w, place) for w in worlds]).T
     n1 = n_hidden * (N_INPUTS + 1)
     opti = ca.Opti()
@@ -299,6 +314,30 @@ def fit_network(worlds: list[dict[str, Any]],
     return [float(v) for v in weights], float(error_m)
 
 
+def fsa_text(moves: list[tuple[str, list[float], str, str]], first: str) -> str:
+    """The FSA file RecogniseObject → ``first``, then MoveBase states (name, weights, where
+    success goes, where failure goes; ``P`` is Push, whose outcome ends the run)."""
+    lines = ["format: 1", "start: R", "states:",
+             f"  R: {{skill: RecogniseObject, transitions: {{success: {first}}}}}"]
+    lines += [f"  {name}: {{skill: MoveBase, params: {{weights: {weights}}}, "
+              f"transitions: {{success: {on_success}, failure: {on_failure}}}}}"
+              for name, weights, on_success, on_failure in moves]
+    lines.append("  P: {skill: Push, transitions: {success: success, failure: failure}}")
+    return "\n".join(lines) + "\n"
+
+
+def fsa_rate(text: str, worlds: int, seed: int, network: Topology = "layered",
+             **settings: Any) -> tuple[int, int]:
+    """Successes of the FSA ``text`` on ``worlds`` episodes of the task's paper world drawn
+    from ``seed`` (``settings``: more of the task's settings, e.g. the PR2 model's)."""
+    from skillcompose import loads_fsa
+    from skillcompose.task import load_task
+
+    task = load_task("examples.move_to_push", world="paper", network=network, **settings)
+    rate = task.evaluate(task.compile(loads_fsa(text)), seed, trials=worlds)
+    return round(rate * worlds), worlds
+
+
 def network_chain_rate(nets: list[list[float]], worlds: int, seed: int,
                        on: str = "failure", network: Topology = "layered"
                        ) -> tuple[int, int]:
@@ -306,20 +345,31 @@ def network_chain_rate(nets: list[list[float]], worlds: int, seed: int,
     Push on ``worlds`` worlds of the task's paper world (drawn by the task from ``seed``):
     a MoveBase's outcome ``on`` goes to the next MoveBase, its other outcome to Push;
     MoveBase's network of topology ``network``."""
-    from skillcompose import loads_fsa
-    from skillcompose.task import load_task
-
-    other = "success" if on == "failure" else "failure"
-    lines = ["format: 1", "start: R", "states:",
-             "  R: {skill: RecogniseObject, transitions: {success: M0}}"]
+    moves = []
     for i, weights in enumerate(nets):
         after = f"M{i + 1}" if i + 1 < len(nets) else "P"
-        lines.append(f"  M{i}: {{skill: MoveBase, params: {{weights: {weights}}}, "
-                     f"transitions: {{{other}: P, {on}: {after}}}}}")
-    lines.append("  P: {skill: Push, transitions: {success: success, failure: failure}}")
-    task = load_task("examples.move_to_push", world="paper", network=network)
-    rate = task.evaluate(task.compile(loads_fsa("\n".join(lines))), seed, trials=worlds)
-    return round(rate * worlds), worlds
+        moves.append((f"M{i}", weights, *((after, "P") if on == "success" else ("P", after))))
+    return fsa_rate(fsa_text(moves, "M0"), worlds, seed, network)
+
+
+def moved_worlds(worlds: list[dict[str, Any]], weights: list[float]
+                 ) -> list[tuple[int, dict[str, Any]]]:
+    """Where MoveBase's own rule, with the paper's network of ``weights``, sends the robot
+    of each world, for the worlds where it may go there (index, moved world: its base pose
+    and ``torso_m`` where the move left them)."""
+    from skillcompose import Blackboard
+    from skillcompose.skills.move_to_push import network_goal
+
+    rng = np.random.default_rng(0)  # the layered network draws nothing
+    out = []
+    for i, w in enumerate(worlds):
+        goal = network_goal(Blackboard({
+            "object_location_world": w["object_position_world"],
+            "base_pose_world": w["base_pose_world"], "table_world": w["table_world"],
+            "torso_height_m": w.get("torso_m", 0.0)}), rng, "layered", weights)
+        if not isinstance(goal, str) and base_fits(goal[0], w):
+            out.append((i, {**w, "base_pose_world": goal[0], "torso_m": goal[1]}))
+    return out
 
 
 def refining_chain(worlds: list[dict[str, Any]],
@@ -328,32 +378,68 @@ def refining_chain(worlds: list[dict[str, Any]],
     """Networks fitted to ``place`` one after another, each on the worlds where the ones
     before it moved the robot (a MoveBase that fails leaves the chain for Push), from where
     they left it: a MoveBase after a MoveBase. Each with its fit's error."""
-    from skillcompose import Blackboard
-    from skillcompose.skills.move_to_push import network_goal
-
     fits = []
-    rng = np.random.default_rng(0)  # the layered network draws nothing
     for _ in range(moves):
         if not worlds:
             break
         weights, error = fit_network(worlds, place)
         fits.append((weights, error))
-        moved = []
-        for w in worlds:  # where MoveBase's own rule sends the robot, if it may go there
-            goal = network_goal(Blackboard({
-                "object_location_world": w["object_position_world"],
-                "base_pose_world": w["base_pose_world"], "table_world": w["table_world"]}),
-                rng, "layered", weights)
-            if not isinstance(goal, str) and base_fits(goal[0], w):
-                moved.append({**w, "base_pose_world": goal[0]})
-        worlds = moved
+        worlds = [w for _, w in moved_worlds(worlds, weights)]
     return fits
 
 
-def measure_blind(worlds: int, seed: int) -> dict[str, Any]:
+def measure_staged(chosen: list[dict[str, Any]],
+                   places: list[tuple[float, float, float, float, str]],
+                   worlds: int, seed: int, judged: int = 395) -> dict[str, Any]:
+    """The paper's network in two stages: a *staging* move (the object
+    :data:`STAGE_AHEAD_M` ahead, on the line from the robot to it; on the far side if that
+    fails), then placements tried in order from there (chosen on ``chosen`` with
+    :data:`STAGED_MARGIN_M`). From a staging pose the object is nearly where it always is,
+    so a network fitted there is precise where one fitted from anywhere is not. Each network
+    is fitted on ``chosen`` (the staging moves) or on the worlds the staging moves reached
+    (the placements); the FSA of them runs on ``worlds`` fresh worlds (``seed + 3``) and on
+    the PR2 model (the kinematic backend, ``judged`` judged placements: 395 as the paper's
+    robot was tested; ``seed + 3``)."""
+    free, pushed = blind_outcomes(chosen, places, STAGED_MARGIN_M)
+    order = blind_order(free, pushed, STAGED_STEPS)
+    stages: list[tuple[list[float], float, int]] = []
+    staged: list[dict[str, Any]] = []
+    left = list(range(len(chosen)))
+    for turn in STAGE_TURNS_DEG:
+        weights, error = fit_network(chosen, (STAGE_AHEAD_M, 0.0, math.radians(turn), 0.0,
+                                              "left"))
+        reached = moved_worlds([chosen[i] for i in left], weights)
+        stages.append((weights, error, len(reached)))
+        staged += [w for _, w in reached]
+        took = {left[k] for k, _ in reached}
+        left = [i for i in left if i not in took]
+    fines = [fit_network(staged, places[i]) for i in order] if staged else []
+    moves = [(f"S{k}", weights, "F0" if fines else "P",
+              f"S{k + 1}" if k + 1 < len(stages) else "P")
+             for k, (weights, _, _) in enumerate(stages)]
+    moves += [(f"F{k}", weights, "P", f"F{k + 1}" if k + 1 < len(fines) else "P")
+              for k, (weights, _) in enumerate(fines)]
+    text = fsa_text(moves, "S0")
+    pushed_fresh, n = fsa_rate(text, worlds, seed + 3)
+    pushed_pr2, _ = fsa_rate(text, judged, seed + 3, backend="kinematic", judge=True)
+    return {
+        "stage_ahead_m": STAGE_AHEAD_M, "stage_turns_deg": list(STAGE_TURNS_DEG),
+        "margin_m": STAGED_MARGIN_M, "chosen": len(chosen),
+        "stages": [{"turn_deg": t, "error_m": e, "reached": r}
+                   for t, (_, e, r) in zip(STAGE_TURNS_DEG, stages, strict=True)],
+        "placements": [{"ahead_m": places[i][0], "side_m": places[i][1],
+                        "turn_deg": round(math.degrees(places[i][2])),
+                        "torso_m": places[i][3], "arm": places[i][4], "error_m": e}
+                       for i, (_, e) in zip(order, fines, strict=True)],
+        "pushed": pushed_fresh, "worlds": n, "pr2_pushed": pushed_pr2, "pr2_judged": judged,
+        "fsa": text}
+
+
+def measure_blind(worlds: int, seed: int, judged: int = 395) -> dict[str, Any]:
     """The table-blind placements (module docstring): chosen on ``worlds`` worlds of the
     paper's kind from ``seed``, measured on as many others (``seed + 1``), then the paper's
-    network fitted to them and run by the task on fresh worlds (``seed + 2``)."""
+    network fitted to them and run by the task on fresh worlds (``seed + 2``); then the same
+    network in two stages (:func:`measure_staged`, ``judged`` placements on the PR2 model)."""
     from examples.move_to_push import random_world
 
     def draw(s: int) -> list[dict[str, Any]]:
@@ -400,7 +486,7 @@ def measure_blind(worlds: int, seed: int) -> dict[str, Any]:
                            "network_pushed": by_net})
     return {"worlds": worlds, "placements_searched": len(places), "rows": rows,
             "margin_m": MARGIN_M, "margin_rows": margin_rows,
-            "refine": refine}
+            "refine": refine, "staged": measure_staged(chosen, places, worlds, seed, judged)}
 
 
 def report(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: float,
@@ -546,8 +632,7 @@ def blind_section(blind: dict[str, Any]) -> list[str]:
                               f"with the {100 * m:.0f} cm margin, worlds chosen on"), "",
             f"- With the {100 * m:.0f} cm margin: exact moves {100 * last['fresh'] / n:.1f} %, "
             f"the paper's network {100 * last['network_pushed'] / n:.1f} %, 12 hidden units "
-            f"{100 * last['wide_pushed'] / n:.1f} % of fresh worlds.",
-            *_wide_finding(margin_rows, n)]
+            f"{100 * last['wide_pushed'] / n:.1f} % of fresh worlds."]
     if blind.get("refine"):
         first = blind["rows"][0]
         lines += [
@@ -559,6 +644,72 @@ def blind_section(blind: dict[str, Any]) -> list[str]:
             "[95 % CI] |", "|---:|---:|---:|"]
         lines += [f"| {r['moves']} | {r['network_error_m']:.2f} | {share(r['network_pushed'])} |"
                   for r in blind["refine"]]
+    return lines + staged_section(blind.get("staged"))
+
+
+STAGED_FILE = "push_ceiling_staged.fsa.yaml"
+"""The staged FSA, written beside the page, so that anyone can run and edit it."""
+
+
+def staged_section(staged: dict[str, Any] | None) -> list[str]:
+    """The page's section on the paper's network in two stages (:func:`measure_staged`)."""
+    if not staged:
+        return []
+
+    def share(k: int, n: int) -> str:
+        low, high = rate_bounds(k, n, 0.025)
+        return f"{k:,}/{n:,} = {100 * k / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
+
+    n, judged = staged["worlds"], staged["pr2_judged"]
+    moves = len(staged["stages"]) + len(staged["placements"])
+    lines = [
+        "", "## The paper's network in two stages", "",
+        "One move of the paper's network from anywhere is coarse, but a move from a pose the "
+        "robot always reaches the same way is not. Here a *staging* move first puts the "
+        f"object {staged['stage_ahead_m']:.1f} m ahead of the robot on the line from the "
+        "robot to it (on the far side of the object if that pose is on the table); from "
+        "there, placements chosen with a "
+        f"{100 * staged['margin_m']:.0f} cm margin are tried in order, as above. Every move "
+        "is the paper's 5-3-5 network (38 weights in [-3, 3]) fitted by least squares: the "
+        f"staging moves on the {staged['chosen']:,} worlds the orders were chosen on, the "
+        "placements on the worlds the staging moves reached, from where they left the "
+        f"robot. The FSA of these {moves} MoveBase states (a staging move's success goes to "
+        "the first placement, its failure to the next staging move; a placement's success "
+        "goes to Push, its failure to the next placement; the last failures to Push) is "
+        f"written to [`{STAGED_FILE}`]({STAGED_FILE}), and ran as the task runs it on fresh "
+        "worlds no choice saw, and unchanged on the PR2 model (the kinematic backend) on "
+        f"{judged} judged placements, as the paper's robot was tested.", "",
+        "| move | aims at: ahead, side [m], turn [°], torso [m], arm | fitted on | position "
+        "error, RMS [m] |", "|---|---|---|---:|"]
+    for k, st in enumerate(staged["stages"]):
+        lines.append(f"| staging {k + 1} | {staged['stage_ahead_m']:.1f}, +0.0, "
+                     f"{st['turn_deg']:+d}, 0.00, left | {staged['chosen']:,} worlds; it "
+                     f"reached {st['reached']:,} of those still left | {st['error_m']:.2f} |")
+    reached = sum(st["reached"] for st in staged["stages"])
+    for k, pl in enumerate(staged["placements"]):
+        lines.append(f"| placement {k + 1} | {pl['ahead_m']:.1f}, {pl['side_m']:+.1f}, "
+                     f"{pl['turn_deg']:+d}, {pl['torso_m']:.2f}, {pl['arm']} | the "
+                     f"{reached:,} staged worlds | {pl['error_m']:.2f} |")
+    fresh, pr2 = staged["pushed"] / n, staged["pr2_pushed"] / judged
+    low_fresh = rate_bounds(staged["pushed"], n, 0.025)[0]
+    low_pr2 = rate_bounds(staged["pr2_pushed"], judged, 0.025)[0]
+
+    def against(rate: float, low: float) -> str:
+        if low >= 0.9:
+            return "above the issue's 90 % target, interval and all"
+        if rate >= 0.9:
+            return "at the issue's 90 % target, its interval reaching below it"
+        return "below the issue's 90 % target"
+
+    lines += [
+        "", f"- Fresh paper worlds: {share(staged['pushed'], n)}, {against(fresh, low_fresh)}.",
+        f"- The PR2 model, {judged} judged placements: {share(staged['pr2_pushed'], judged)}, "
+        f"{against(pr2, low_pr2)} (the paper's real robot: 82 %).",
+        "- So the one-move figures above bound FSAs that move once per placement, not the "
+        "paper's network: in an FSA of "
+        f"{moves} MoveBase states it pushes {100 * fresh:.1f} % of fresh worlds. An evolved "
+        "FSA that pushes far less (`paper_comparison.md`) falls short of what these skills "
+        "allow: what it lacks is the search, not the network."]
     return lines
 
 
@@ -570,11 +721,14 @@ def main(argv: list[str] | None = None) -> int:
                    help="grid step in the robot frame [m] (0.04; also half of it)")
     p.add_argument("--headings", type=int, default=36,
                    help="headings searched (36; also twice as many)")
+    p.add_argument("--judged", type=int, default=395,
+                   help="judged placements on the PR2 model for the staged FSA (395, the "
+                        "paper's real-robot count)")
     p.add_argument("--out", type=output_dir, default=None,
                    help="output folder (default docs/results)")
     args = p.parse_args(argv)
-    if args.worlds < 1 or args.headings < 1 or not 0.0 < args.step <= 0.5:
-        p.error("--worlds and --headings must be at least 1, --step in (0, 0.5] m")
+    if args.worlds < 1 or args.headings < 1 or args.judged < 1 or not 0.0 < args.step <= 0.5:
+        p.error("--worlds, --headings and --judged must be at least 1, --step in (0, 0.5] m")
     args.argv = list(sys.argv[1:] if argv is None else argv)
     out = Path(args.out) if args.out else ROOT / "docs" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -587,15 +741,20 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             print(f"{kind}{' judged' if judge else ''}, step {step:.3f} m, {headings} "
                   f"headings: {row['with_pose']}/{args.worlds}", file=sys.stderr)
-    blind = measure_blind(args.worlds, args.seed)
+    blind = measure_blind(args.worlds, args.seed, args.judged)
     print(f"without the table: {[r['fresh'] for r in blind['rows']]} exact, "
           f"{[r['network_pushed'] for r in blind['rows']]} by the fitted networks, of "
-          f"{args.worlds}", file=sys.stderr)
+          f"{args.worlds}; in two stages {blind['staged']['pushed']}", file=sys.stderr)
     seconds = time.perf_counter() - t0
     atomic_write(out / "push_ceiling.json", json.dumps(
         {"argv": args.argv, "seconds": seconds, "rows": rows, "blind": blind},
         indent=1).encode() + b"\n")
     atomic_write(out / "push_ceiling.md", report(rows, args, seconds, blind).encode())
+    atomic_write(out / STAGED_FILE, (
+        "# The paper's network in two stages, fitted by benchmarks/push_ceiling.py (its page:\n"
+        "# push_ceiling.md). Run it: skillcompose run " + STAGED_FILE + " --task\n"
+        "# examples.move_to_push --set world=paper --trials 1000\n"
+        + blind["staged"]["fsa"]).encode())
     print(f"wrote {out / 'push_ceiling.md'}", file=sys.stderr)
     return 0
 

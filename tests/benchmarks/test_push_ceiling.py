@@ -44,7 +44,7 @@ def test_an_object_at_the_edge_has_a_pose_and_one_in_a_huge_tables_middle_has_no
 @pytest.mark.slow  # six tiny searches, each with its classifier grid: ~4 s
 def test_the_quick_run_writes_its_page(tmp_path: Path) -> None:
     assert push_ceiling.main(["--worlds", "3", "--step", "0.1", "--headings", "8",
-                              "--out", str(tmp_path)]) == 0
+                              "--judged", "2", "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "push_ceiling.json").read_text())["rows"]
     assert len(rows) == 6 and all(0 <= r["with_pose"] <= 3 for r in rows)
     assert {r["step_m"] for r in rows} == {0.1, 0.05}
@@ -57,6 +57,16 @@ def test_the_quick_run_writes_its_page(tmp_path: Path) -> None:
     text = (tmp_path / "push_ceiling.md").read_text()
     assert "Written by `benchmarks/push_ceiling.py`" in text and "## Against the targets" in text
     assert "## Without seeing the table" in text and "12 hidden units" in text
+    staged = blind["staged"]
+    assert [s["turn_deg"] for s in staged["stages"]] == list(push_ceiling.STAGE_TURNS_DEG)
+    assert sum(s["reached"] for s in staged["stages"]) <= 3
+    assert len(staged["placements"]) <= push_ceiling.STAGED_STEPS
+    assert 0 <= staged["pushed"] <= 3 and 0 <= staged["pr2_pushed"] <= staged["pr2_judged"] == 2
+    assert "## The paper's network in two stages" in text
+    from skillcompose import load_fsa
+
+    fsa = load_fsa(tmp_path / push_ceiling.STAGED_FILE)  # the file beside the page runs
+    assert len(fsa.states) == 2 + len(staged["stages"]) + len(staged["placements"])
 
 
 def test_placements_are_tried_in_order_and_the_first_one_taken_decides() -> None:
@@ -121,3 +131,41 @@ def test_a_margin_refuses_placements_that_push_only_when_exact() -> None:
     near = {**world, "table_world": table}
     assert push_ceiling.blind_outcomes([near], [places[1]])[1].tolist() == [[True]]
     assert push_ceiling.blind_outcomes([near], [places[1]], margin=0.1)[1].tolist() == [[False]]
+
+
+def test_the_staged_fsa_tries_its_staging_moves_then_its_placements_in_order() -> None:
+    from skillcompose import loads_fsa
+
+    w = [0.0] * 38
+    text = push_ceiling.fsa_text([("S0", w, "F0", "S1"), ("S1", w, "F0", "P"),
+                                  ("F0", w, "P", "F1"), ("F1", w, "P", "P")], "S0")
+    fsa = loads_fsa(text)
+    assert fsa.start == "R"
+    edges = {name: dict(state.transitions) for name, state in fsa.states.items()}
+    assert edges["R"] == {"success": "S0"}
+    assert edges["S0"] == {"success": "F0", "failure": "S1"}
+    assert edges["S1"] == {"success": "F0", "failure": "P"}
+    assert edges["F0"] == {"success": "P", "failure": "F1"}
+    assert edges["F1"] == {"success": "P", "failure": "P"}
+    assert edges["P"] == {"success": "success", "failure": "failure"}
+
+
+def test_a_network_fitted_from_a_staging_pose_is_precise_where_one_from_anywhere_is_not(
+) -> None:
+    """The staged section's premise: from anywhere within 2 m of the table one move of the
+    paper's network lands tens of centimetres from a placement; from the poses a staging
+    move reached, a network fitted the same way lands within a few, and the move keeps the
+    torso where it put it."""
+    from examples.move_to_push import random_world
+
+    rng = np.random.default_rng(5)
+    worlds = [random_world(rng, world="paper") for _ in range(60)]
+    place = (0.8, -0.4, math.radians(30), 0.0, "right")
+    _, anywhere = push_ceiling.fit_network(worlds, place)
+    stage, _ = push_ceiling.fit_network(
+        worlds, (push_ceiling.STAGE_AHEAD_M, 0.0, 0.0, 0.0, "left"))
+    staged = push_ceiling.moved_worlds(worlds, stage)
+    assert len(staged) >= 45  # most staging moves land off the table
+    assert all(0.0 <= w["torso_m"] <= 0.31 for _, w in staged)
+    _, from_staging = push_ceiling.fit_network([w for _, w in staged], place)
+    assert anywhere > 0.15 and from_staging < 0.08, (anywhere, from_staging)
