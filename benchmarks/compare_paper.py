@@ -394,8 +394,11 @@ def report(rows: list[Row], command: str, started: str, load_before: str, load_a
     lines += ["## Targets (issue: paper worlds, our best preset)", "", *_targets(rows), "",
               "Where the push runs fall short: `docs/results/push_ceiling.md` measures, on "
               "the same paper worlds, how often a pose exists at all, what an FSA that never "
-              "sees the table could reach with exact moves, and how far one move of the "
-              "paper's network, fitted to such a placement, lands from it.", "",
+              "sees the table could reach with exact moves, how far one move of the "
+              "paper's network, fitted to such a placement, lands from it, and how often "
+              "the paper's network pushes in an FSA of two stages fitted by least squares "
+              "(a staging move, then placements from where it left the robot): what the "
+              "skills allow and the search above has not found.", "",
               "## Every run", "", *_per_run(rows), ""]
     return "\n".join(lines)
 
