@@ -281,18 +281,43 @@ def _checks(run: RunState, fitness: list[float]) -> str | None:
     return "solved" if solved else None
 
 
+LOST_IN_A_ROW = 3
+"""With common random numbers, the generations in a row every evaluation of which killed its
+worker that stop the run (without them, one does)."""
+
+
+def _all_lost(faults: Mapping[str, Any]) -> bool:
+    return faults.get("jobs", 0) > 0 and faults.get("lost", 0) >= faults["jobs"]
+
+
 def _check_not_all_lost(run: RunState) -> None:
     """Stop the run when every evaluation of the generation killed the worker running it:
-    the task does that, so going on would only count deaths."""
+    the task does that, so going on would only count deaths. With common random numbers
+    the evaluations of a generation share their episodes, so one episode that ends its
+    process (a world 1 % of which do) kills every evaluation that reaches it: such a
+    generation is recorded, every evaluation scoring worst and counted lost, and the run
+    stops only at :data:`LOST_IN_A_ROW` such generations in a row (the last one not
+    recorded). The history is the count, so a resumed run stops where the first would."""
     faults = run.gen_faults
-    if faults.jobs == 0 or faults.lost < faults.jobs:
+    if not _all_lost(faults.to_dict()):
         return
+    in_a_row = ""
+    if run.cfg.common_random_numbers:
+        before = 0
+        for rec in reversed(run.history):
+            if not _all_lost(rec.faults):
+                break
+            before += 1
+        if before + 1 < LOST_IN_A_ROW:
+            return
+        in_a_row = (f", as did every evaluation of the {before} generation"
+                    f"{'' if before == 1 else 's'} before it (they shared their episodes)")
     again = ""
     if run.rundir is not None:
         again = (f"; fix it, then go on with: skillcompose evolve --resume "
                  f"{shlex.quote(str(run.rundir.path))}")
     raise EvolutionError(
         f"every evaluation of generation {run.generation} ({faults.jobs}) killed the worker "
-        f"process running it: os._exit in task {run.task.name} or a skill, a crash in C code, "
-        f"or the out-of-memory killer; the run stops without recording it{again}"
+        f"process running it{in_a_row}: os._exit in task {run.task.name} or a skill, a crash "
+        f"in C code, or the out-of-memory killer; the run stops without recording it{again}"
     )

@@ -10,7 +10,9 @@
 - ``sigint``: sends this process a real ``SIGINT`` (a person's Ctrl-C);
 - ``setup``: the task's world setup raises (every evaluation fails);
 - ``crash_setup``: the world setup ends its process at once in a worker (every evaluation
-  kills its worker), and raises in the process that loaded the task.
+  kills its worker), and raises in the process that loaded the task;
+- ``crash_world``: the same, in the worlds whose setup draws below ``p_fault`` (with common
+  random numbers, every evaluation of a generation shares that world's fate).
 
 ``p_fault`` is the probability (drawn from the run's generator, so the same in every run)
 that a call misbehaves; otherwise ``Fault`` returns ``success``. For tests of how evolution
@@ -33,7 +35,7 @@ from skillcompose import Blackboard, Registry, Skill, skill
 from skillcompose.task import Task
 
 FAULTS = ("raise", "exit", "interrupt", "hang", "stuck", "leak", "crash", "sigint", "setup",
-          "crash_setup")
+          "crash_setup", "crash_world")
 MAIN_PID = os.getpid()
 
 
@@ -88,6 +90,13 @@ def make_task(
             if os.getpid() != MAIN_PID:
                 os._exit(3)
             raise RuntimeError("crash_setup ran in the process that loaded the task")
+    if fault == "crash_world":
+        def setup(rng: np.random.Generator) -> Blackboard:
+            if rng.random() < p_fault:
+                if os.getpid() != MAIN_PID:
+                    os._exit(3)
+                raise RuntimeError("crash_world ran in the process that loaded the task")
+            return base.setup(rng)
 
     return replace(base, registry=registry, setup=setup, name=f"faulty_{fault}",
                    settings={"fault": fault, "p_fault": p_fault, "p_fail": p_fail,

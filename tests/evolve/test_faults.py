@@ -18,6 +18,7 @@ import pytest
 from skillcompose import FSA, Blackboard, Registry, State, load_fsa, save_fsa, skill
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import EvolutionConfig, Genome, Job, Node, SkillSet, evolve
+from skillcompose.evolve.errors import EvolutionError
 from skillcompose.evolve.evaluation import EvalLimits, Faults
 from skillcompose.evolve.holds import describe_fresh
 from skillcompose.evolve.pool import ProcessEvaluator
@@ -403,8 +404,9 @@ def test_dead_workers_are_counted_as_lost_jobs() -> None:
 def test_a_run_whose_every_evaluation_kills_its_worker_stops_in_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """Going on would only count deaths, and the end of the run (simplification, the fresh
-    check) would run the task in the main process, which it would kill without a word."""
+    """Going on would only count deaths. The first two such generations are recorded, each
+    evaluation lost (shared episodes can all end their process by chance); the third is
+    not."""
     d = tmp_path / "run"
     code = skillcompose_main([
         "evolve", FAULTY, "--set", "fault=crash_setup", "--population", "6", "--generations",
@@ -412,11 +414,49 @@ def test_a_run_whose_every_evaluation_kills_its_worker_stops_in_one_line(
     ])
     err = capsys.readouterr().err
     assert code == 2
+    # the default for a noisy task shares each generation's episodes among its
+    # evaluations, so it takes three such generations in a row to stop
     assert err.count("\n") == 1 and err.startswith(
-        "skillcompose evolve: error: every evaluation of generation 0 (6) killed the worker "
-        "process running it: os._exit in task faulty_crash_setup or a skill, a crash in C code")
+        "skillcompose evolve: error: every evaluation of generation 2 (6) killed the worker "
+        "process running it, as did every evaluation of the 2 generations before it (they "
+        "shared their episodes): os._exit in task faulty_crash_setup or a skill, a crash in "
+        "C code")
     assert f"go on with: skillcompose evolve --resume {d}" in err
-    assert not (d / "best.yaml").exists() and (d / "checkpoint.json").is_file()
+    history = [json.loads(line) for line in (d / "history.jsonl").read_text().splitlines()]
+    assert [(h["faults"]["jobs"], h["faults"]["lost"]) for h in history] == [(6, 6), (6, 6)]
+    assert (d / "checkpoint.json").is_file()
+
+
+def test_shared_episodes_that_kill_every_worker_now_and_then_do_not_stop_the_run() -> None:
+    """With common random numbers a generation's evaluations share their worlds, so a
+    world that ends its process kills them all: in 30 % of generations here. Such a
+    generation is recorded, each evaluation lost; two in a row still go on."""
+    from skillcompose.evolve.algorithm import LOST_IN_A_ROW
+
+    task = load_task(FAULTY, fault="crash_world", p_fault=0.3)
+    cfg = EvolutionConfig(population=6, generations=8, initial_nodes=3,
+                          common_random_numbers=True, trials=1)
+    result = evolve(task, cfg, seed=4, backend="process", workers=2, simplify_result=False,
+                    check_trials=0)
+    lost = [r.faults["lost"] for r in result.history]
+    assert result.generations == 8 and LOST_IN_A_ROW == 3
+    assert lost == [0, 6, 6, 0, 0, 0, 0, 0, 6]  # every evaluation, in generations 1, 2 and 8
+    assert all(r.best == task.worst for r, n in zip(result.history, lost, strict=True) if n)
+    assert any(r.best != task.worst for r in result.history)
+
+
+def test_shared_episodes_that_kill_every_worker_three_generations_running_stop_the_run(
+) -> None:
+    task = load_task(FAULTY, fault="crash_world", p_fault=1.0)
+    cfg = EvolutionConfig(population=6, generations=8, initial_nodes=3,
+                          common_random_numbers=True, trials=1)
+    with pytest.raises(EvolutionError) as err:
+        evolve(task, cfg, seed=4, backend="process", workers=2, simplify_result=False,
+               check_trials=0)
+    assert str(err.value).startswith(
+        "every evaluation of generation 2 (6) killed the worker process running it, as did "
+        "every evaluation of the 2 generations before it (they shared their episodes): "
+        "os._exit in task faulty_crash_world")
 
 
 def test_a_robustness_sweep_whose_worker_dies_is_one_line(
