@@ -377,8 +377,12 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
                f"{2 * max(limit, 1)}")
         )
         return 0
+    best = f"{result.best_fitness:g}"
+    if math.isinf(result.best_fitness) and task.error_fitness is None and result.faults.total:
+        best += (" (an episode of it raised or was lost, scored as the task's error_fitness, "
+                 "by default the worst)")
     print(
-        f"{task.name}: {state}, best fitness {result.best_fitness:g} after "
+        f"{task.name}: {state}, best fitness {best} after "
         f"{result.generations} generations, {result.episodes} episodes, "
         f"{result.wall_time:.1f} s; best FSA has {len(result.best_fsa.states)} states "
         f"(evolved: {len(result.evolved_fsa.states)})"

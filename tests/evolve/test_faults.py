@@ -459,6 +459,22 @@ def test_shared_episodes_that_kill_every_worker_three_generations_running_stop_t
         "os._exit in task faulty_crash_world")
 
 
+def test_a_best_fitness_of_infinity_says_where_it_came_from(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A best fitness of inf (or -inf) is the default error_fitness of an episode that
+    raised, not a score the FSA earned: the summary says so, not a bare ``inf``."""
+    code = skillcompose_main([
+        "evolve", FAULTY, "--set", "fault=setup", "--population", "6", "--generations", "1",
+        "--initial-nodes", "3", "--quiet", "--no-simplify",
+    ])
+    out = capsys.readouterr().out
+    assert code == 1
+    assert out.startswith("faulty_setup: not solved, best fitness inf (an episode of it "
+                          "raised or was lost, scored as the task's error_fitness, by default "
+                          "the worst) after 1 generations")
+
+
 def test_a_robustness_sweep_whose_worker_dies_is_one_line(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
