@@ -158,7 +158,8 @@ def _evolve(
             rundir.save_checkpoint(run.checkpoint())
     run.exported = False
     if plan.backend != "serial":  # the checks where the evaluations are: apart from the run
-        run.isolated = IsolatedChecks(plan.task, plan.skills)
+        run.isolated = IsolatedChecks(plan.task, plan.skills,
+                                      EvalLimits(plan.cfg.eval_time_limit).kill_after)
     try:
         if run.isolated is not None:
             run.isolated.start()

@@ -379,8 +379,8 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
         return 0
     best = f"{result.best_fitness:g}"
     if math.isinf(result.best_fitness) and task.error_fitness is None and result.faults.total:
-        best += (" (an episode of it raised or was lost, scored as the task's error_fitness, "
-                 "by default the worst)")
+        best += (" (an episode of it raised, ran past the time limit or was lost, scored as "
+                 "the task's error_fitness, by default the worst)")
     print(
         f"{task.name}: {state}, best fitness {best} after "
         f"{result.generations} generations, {result.episodes} episodes, "

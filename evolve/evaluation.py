@@ -35,7 +35,7 @@ import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from types import FrameType
-from typing import Any, NamedTuple, Protocol
+from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
@@ -173,6 +173,12 @@ class Guard:
     disarming an evaluation only note the time: no system call per evaluation.
     """
 
+    watch: ClassVar[Any] = None
+    """Where a process that another one watches notes when its armed evaluation started (a
+    shared double: ``time.monotonic()``, which is the machine's, or -1 when none is armed):
+    the checks' child (:mod:`.isolated`), whose parent kills it when an episode runs past the
+    limit where no signal reaches it (code that blocks ``SIGALRM``, a wait in C)."""
+
     def __init__(self, time_limit: float | None) -> None:
         self.time_limit = time_limit
         self.active = False
@@ -217,9 +223,13 @@ class Guard:
     def arm(self) -> None:
         self.started = time.monotonic()
         self.armed = self.active
+        if Guard.watch is not None and self.active:
+            Guard.watch.value = self.started
 
     def disarm(self) -> None:
         self.armed = False
+        if Guard.watch is not None:
+            Guard.watch.value = -1.0
 
     @contextlib.contextmanager
     def episode(self) -> Iterator[None]:

@@ -261,10 +261,15 @@ def fresh_in(task: Task, compiler: GenomeCompiler, fsa: FSA, seed: int, trials: 
 
 
 def _died(run: RunState, skipped: str) -> None:
-    """Say that a check at the end of the run killed the process running it (counted by
-    :meth:`RunState.check`)."""
-    print(f"warning: the end of the run killed the process running task {run.task.name} "
-          f"(os._exit in the task or a skill, a crash in C code): {skipped}", file=sys.stderr)
+    """Say that a check at the end of the run killed the process running it, or ran past
+    the time limit where no signal stopped it (counted by :meth:`RunState.check`)."""
+    if run.isolated is not None and run.isolated.last_overran:
+        why = ("an episode ran past the evaluation time limit where no signal stopped it "
+               "(SIGALRM blocked, a wait in C code), and its process was killed")
+    else:
+        why = "it killed its process (os._exit in the task or a skill, a crash in C code)"
+    print(f"warning: the end of the run ran task {run.task.name} and {why}: {skipped}",
+          file=sys.stderr)
 
 
 def _write_final(run: RunState, fitness: list[float], evolved: FSA, best: FSA,

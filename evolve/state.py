@@ -304,12 +304,15 @@ class RunState:
     def check(self, fn: Callable[..., T], *args: Any) -> T | None:
         """``fn(task, compiler, *args)``, a check of a candidate: in the checks' child
         process when there is one (:mod:`.isolated`), else here. None when it killed the
-        child: counted as a lost job of the checks."""
+        child (counted as a lost job of the checks) or the child was killed because an
+        episode ran past the time limit where no signal stopped it (a time-out)."""
         if self.isolated is None:
             return fn(self.task, self.compiler, *args)
         got = self.isolated.call(fn, *args)
         if got is None:
-            self.note_check_faults(Faults(jobs=1, failed=1, lost=1))
+            overran = self.isolated.last_overran
+            self.note_check_faults(Faults(jobs=1, failed=1, lost=int(not overran),
+                                          timeouts=int(overran)))
         return got
 
     def note_check_faults(self, faults: Faults) -> None:

@@ -3,7 +3,8 @@
 - ``raise``: raises ``ValueError``;  ``exit``: calls ``sys.exit(0)``;
   ``interrupt``: raises ``KeyboardInterrupt`` (as if Ctrl-C, but from the skill);
 - ``hang``: sleeps for an hour;  ``stuck``: the same with ``SIGALRM`` blocked, as code
-  that never returns to the interpreter would be;
+  that never returns to the interpreter would be; ``stuck_checks``: the same, only in the
+  process that runs a run's checks (:mod:`skillcompose.evolve.isolated`);
 - ``leak``: keeps ``leak_mb`` MB more of memory on every call;
 - ``crash``: ends its process at once (``os._exit``), as a segfault would (never run it
   in the test process);
@@ -32,10 +33,11 @@ import numpy as np
 
 from examples import toy_task
 from skillcompose import Blackboard, Registry, Skill, skill
+from skillcompose.evolve.evaluation import Guard
 from skillcompose.task import Task
 
-FAULTS = ("raise", "exit", "interrupt", "hang", "stuck", "leak", "crash", "sigint", "setup",
-          "crash_setup", "crash_world")
+FAULTS = ("raise", "exit", "interrupt", "hang", "stuck", "stuck_checks", "leak", "crash",
+          "sigint", "setup", "crash_setup", "crash_world")
 MAIN_PID = os.getpid()
 
 
@@ -55,7 +57,7 @@ def make_fault(kind: str, p_fault: float, leak_mb: float) -> Skill:
             raise KeyboardInterrupt
         if kind == "hang":
             time.sleep(3600)
-        if kind == "stuck":
+        if kind == "stuck" or (kind == "stuck_checks" and Guard.watch is not None):
             signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
             time.sleep(3600)
         if kind == "leak":

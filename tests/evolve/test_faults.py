@@ -471,8 +471,8 @@ def test_a_best_fitness_of_infinity_says_where_it_came_from(
     out = capsys.readouterr().out
     assert code == 1
     assert out.startswith("faulty_setup: not solved, best fitness inf (an episode of it "
-                          "raised or was lost, scored as the task's error_fitness, by default "
-                          "the worst) after 1 generations")
+                          "raised, ran past the time limit or was lost, scored as the task's "
+                          "error_fitness, by default the worst) after 1 generations")
 
 
 def test_a_robustness_sweep_whose_worker_dies_is_one_line(
@@ -709,6 +709,66 @@ def test_a_check_that_kills_its_process_returns_none_and_the_next_one_runs() -> 
         assert name == "toy_fetch" and second not in (os.getpid(), first)
     finally:
         checks.close()
+
+
+def test_a_check_stuck_where_no_signal_reaches_is_killed_after_the_limit() -> None:
+    """An episode of a check that blocks SIGALRM and waits would hang the run for ever: the
+    child notes when each episode started, and the parent kills it a little after the
+    limit; that check returns None as a time-out, and the next one runs in a new child."""
+    from skillcompose.evolve.evaluation import EvalLimits
+    from skillcompose.evolve.isolated import IsolatedChecks
+
+    task = load_task("examples.toy_task")
+    limits = EvalLimits(0.3)
+    checks = IsolatedChecks(task, SkillSet.from_task(task), limits.kill_after)
+    try:
+        checks.start()
+        t = time.monotonic()
+        assert checks.call(_stuck_in_child, 0.3) is None
+        assert checks.last_overran and checks.overran == 1
+        assert time.monotonic() - t < (limits.kill_after or 0) + 5
+        assert (checks.call(_in_child, False) or ("", 0))[0] == "toy_fetch"
+        assert checks.call(_in_child, True) is None and not checks.last_overran
+    finally:
+        checks.close()
+
+
+def test_a_run_whose_checks_get_stuck_finishes_and_says_why(tmp_path: Path) -> None:
+    """The final fresh check's episodes block SIGALRM and wait: the run used to wait for
+    ever. Now the checks' process is killed a little after the limit, the check counts as
+    a time-out, and the run ends with one warning line that says so. In a process of its
+    own, so that a regression cannot hang this one past the timeout."""
+    import subprocess
+    import sys
+
+    d = tmp_path / "run"
+    args = ["evolve", FAULTY, "--set", "fault=stuck_checks", "--set", "p_fault=1", "--population",
+            "6", "--generations", "1", "--initial-nodes", "3", "--workers", "2", "--quiet",
+            "--eval-time-limit", "0.5", "--no-simplify", "--out", str(d)]
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys; from skillcompose.cli import main; "
+         "sys.exit(main(sys.argv[1:]))", *args],
+        capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode in (0, 1), done.stderr[-2000:]
+    assert "Traceback" not in done.stderr
+    warned = [line for line in done.stderr.splitlines() if line.startswith("warning:")]
+    assert warned == [
+        "warning: the end of the run ran task faulty_stuck_checks and an episode ran past the "
+        "evaluation time limit where no signal stopped it (SIGALRM blocked, a wait in C code), "
+        "and its process was killed: the fresh-episode check is skipped"], done.stderr
+    result = json.loads((d / "run.json").read_text())["result"]
+    assert result["faults"]["timeouts"] >= 1
+
+
+def _stuck_in_child(task: Task, compiler: Any, limit: float) -> None:
+    """An episode under the check's limit that no signal can stop."""
+    import signal
+
+    from skillcompose.evolve.evaluation import Guard
+
+    with Guard(limit) as guard, guard.episode():
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
+        time.sleep(3600)
 
 
 def _in_child(task: Task, compiler: Any, die: bool) -> tuple[str, int]:
