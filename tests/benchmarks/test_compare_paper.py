@@ -73,6 +73,21 @@ def test_a_network_the_paper_did_not_use_runs_ours_alone_and_sets_no_target(
         [compare_paper.Row(**r) for r in rows], "paper", tmp_path) is None
 
 
+@pytest.mark.slow  # one short run of stacking, judged on the PR2 model: ~10 s
+@pytest.mark.kinematics
+def test_stacking_on_the_fitted_reach_nests_that_file_and_sets_no_target(
+        tmp_path: Path) -> None:
+    args = ["--quick", "--experiments", "stacking-staged-reach", "--algorithms", "ours",
+            "--seeds", "1", "--out", str(tmp_path)]
+    assert compare_paper.main(args) == 0
+    rows = json.loads((tmp_path / "paper_comparison.json").read_text())
+    assert [(r["experiment"], r["reach_file"]) for r in rows] == [
+        ("stacking-staged-reach", "docs/results/push_ceiling_staged.fsa.yaml (layered)")]
+    text = (tmp_path / "paper_comparison.md").read_text()
+    assert "- stacking-staged-reach, ours, paper worlds (its MoveToReach was fitted, not " \
+        "evolved, so not one of the issue's targets)" in text
+
+
 def test_unknown_experiments_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         compare_paper.main(["--experiments", "push-layered,push-cnn"])
