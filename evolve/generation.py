@@ -124,7 +124,7 @@ def record(
     if improved:
         run.best = (run.population[bi].copy(), bf, run.generation)
     run.evaluations += episodes
-    finite = [f for f in fitness if math.isfinite(f)] or [math.inf]
+    finite = [f for f in fitness if math.isfinite(f)] or [run.task.worst]  # none: the worst
     rec = GenerationRecord(
         generation=run.generation,
         best=float(bf),

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -441,8 +442,24 @@ def test_shared_episodes_that_kill_every_worker_now_and_then_do_not_stop_the_run
     lost = [r.faults["lost"] for r in result.history]
     assert result.generations == 8 and LOST_IN_A_ROW == 3
     assert lost == [0, 6, 6, 0, 0, 0, 0, 0, 6]  # every evaluation, in generations 1, 2 and 8
-    assert all(r.best == task.worst for r, n in zip(result.history, lost, strict=True) if n)
+    # their best and mean are the task's worst (+inf here: lower is better), not a score
+    assert all((r.best, r.mean, r.median) == (task.worst,) * 3
+               for r, n in zip(result.history, lost, strict=True) if n)
     assert any(r.best != task.worst for r in result.history)
+
+
+def test_a_generation_with_no_fitness_records_the_worst_where_higher_is_better() -> None:
+    """Its mean and median are the worst fitness, -inf for a task that maximises, not the
+    +inf that would read as the best there is."""
+    task = dataclasses.replace(load_task(FAULTY, fault="crash_world", p_fault=0.3),
+                               minimize=False, target=1e9)
+    cfg = EvolutionConfig(population=6, generations=2, initial_nodes=3,
+                          common_random_numbers=True, trials=1)
+    result = evolve(task, cfg, seed=4, backend="process", workers=2, simplify_result=False,
+                    check_trials=0)
+    lost = result.history[1]
+    assert lost.faults["lost"] == 6
+    assert (lost.best, lost.mean, lost.median) == (-math.inf,) * 3
 
 
 def test_shared_episodes_that_kill_every_worker_three_generations_running_stop_the_run(
