@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -55,16 +56,20 @@ def test_unknown_algorithms_and_worlds_are_refused(capsys: pytest.CaptureFixture
     assert "--algorithms: unknown ['genetic']" in capsys.readouterr().err
 
 
+def _quick_run(out: Path, experiment: str, algorithms: str) -> tuple[list[Any], str]:
+    """``compare_paper.py --quick`` of one experiment, one seed: its rows and its page."""
+    assert compare_paper.main(["--quick", "--experiments", experiment, "--algorithms",
+                               algorithms, "--seeds", "1", "--out", str(out)]) == 0
+    rows = json.loads((out / "paper_comparison.json").read_text())
+    return rows, (out / "paper_comparison.md").read_text()
+
+
 @pytest.mark.slow  # one short run of moving to push, judged on the PR2 model: ~3 s
 @pytest.mark.kinematics
 def test_a_network_the_paper_did_not_use_runs_ours_alone_and_sets_no_target(
         tmp_path: Path) -> None:
-    args = ["--quick", "--experiments", "push-layered-12", "--algorithms", "table1,ours",
-            "--seeds", "1", "--out", str(tmp_path)]
-    assert compare_paper.main(args) == 0
-    rows = json.loads((tmp_path / "paper_comparison.json").read_text())
+    rows, text = _quick_run(tmp_path, "push-layered-12", "table1,ours")
     assert [(r["experiment"], r["algorithm"]) for r in rows] == [("push-layered-12", "ours")]
-    text = (tmp_path / "paper_comparison.md").read_text()
     assert "- push-layered-12, ours, paper worlds (not the paper's network, so not one of " \
         "the issue's targets)" in text
     assert "target 5/5" not in text  # no target line for it
@@ -77,13 +82,9 @@ def test_a_network_the_paper_did_not_use_runs_ours_alone_and_sets_no_target(
 @pytest.mark.kinematics
 def test_stacking_on_the_fitted_reach_nests_that_file_and_sets_no_target(
         tmp_path: Path) -> None:
-    args = ["--quick", "--experiments", "stacking-staged-reach", "--algorithms", "ours",
-            "--seeds", "1", "--out", str(tmp_path)]
-    assert compare_paper.main(args) == 0
-    rows = json.loads((tmp_path / "paper_comparison.json").read_text())
+    rows, text = _quick_run(tmp_path, "stacking-staged-reach", "ours")
     assert [(r["experiment"], r["reach_file"]) for r in rows] == [
         ("stacking-staged-reach", "docs/results/push_ceiling_staged.fsa.yaml (layered)")]
-    text = (tmp_path / "paper_comparison.md").read_text()
     assert "- stacking-staged-reach, ours, paper worlds (its MoveToReach was fitted, not " \
         "evolved, so not one of the issue's targets)" in text
 

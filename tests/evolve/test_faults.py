@@ -692,17 +692,11 @@ def test_a_run_whose_task_sometimes_kills_its_process_finishes_and_counts_it(
     every resume). On the process backend they run in a child of their own: a check that
     kills it fails and counts as lost, and the run finishes. In a process of its own: a
     regression would end this one."""
-    import subprocess
-    import sys
-
     d = tmp_path / "run"
-    args = ["evolve", FAULTY, "--set", "fault=crash", "--set", "p_fault=0.5", "--population",
-            "12", "--generations", "3", "--initial-nodes", "4", "--workers", "2", "--quiet",
-            "--out", str(d)]
-    done = subprocess.run(
-        [sys.executable, "-c", "import sys; from skillcompose.cli import main; "
-         "sys.exit(main(sys.argv[1:]))", *args],
-        capture_output=True, text=True, timeout=300, check=False)
+    done = _cli_in_a_process(
+        ["evolve", FAULTY, "--set", "fault=crash", "--set", "p_fault=0.5", "--population",
+         "12", "--generations", "3", "--initial-nodes", "4", "--workers", "2", "--quiet",
+         "--out", str(d)], timeout=300)
     assert done.returncode in (0, 1), done.stderr[-2000:]
     assert "Traceback" not in done.stderr
     assert (d / "best.yaml").is_file() and (d / "best_evolved.yaml").is_file()
@@ -710,6 +704,18 @@ def test_a_run_whose_task_sometimes_kills_its_process_finishes_and_counts_it(
     per_generation = sum(json.loads(line)["faults"]["lost"]
                          for line in (d / "history.jsonl").read_text().splitlines())
     assert per_generation > 0 and result["faults"]["lost"] >= per_generation
+
+
+def _cli_in_a_process(args: list[str], timeout: float) -> Any:
+    """``skillcompose ARGS`` in a Python process of its own (a run that a regression would
+    end or hang cannot take the test's process with it): the completed process."""
+    import subprocess
+    import sys
+
+    return subprocess.run(
+        [sys.executable, "-c", "import sys; from skillcompose.cli import main; "
+         "sys.exit(main(sys.argv[1:]))", *args],
+        capture_output=True, text=True, timeout=timeout, check=False)
 
 
 def test_a_check_that_kills_its_process_returns_none_and_the_next_one_runs() -> None:
@@ -755,17 +761,11 @@ def test_a_run_whose_checks_get_stuck_finishes_and_says_why(tmp_path: Path) -> N
     ever. Now the checks' process is killed a little after the limit, the check counts as
     a time-out, and the run ends with one warning line that says so. In a process of its
     own, so that a regression cannot hang this one past the timeout."""
-    import subprocess
-    import sys
-
     d = tmp_path / "run"
-    args = ["evolve", FAULTY, "--set", "fault=stuck_checks", "--set", "p_fault=1", "--population",
-            "6", "--generations", "1", "--initial-nodes", "3", "--workers", "2", "--quiet",
-            "--eval-time-limit", "0.5", "--no-simplify", "--out", str(d)]
-    done = subprocess.run(
-        [sys.executable, "-c", "import sys; from skillcompose.cli import main; "
-         "sys.exit(main(sys.argv[1:]))", *args],
-        capture_output=True, text=True, timeout=120, check=False)
+    done = _cli_in_a_process(
+        ["evolve", FAULTY, "--set", "fault=stuck_checks", "--set", "p_fault=1", "--population",
+         "6", "--generations", "1", "--initial-nodes", "3", "--workers", "2", "--quiet",
+         "--eval-time-limit", "0.5", "--no-simplify", "--out", str(d)], timeout=120)
     assert done.returncode in (0, 1), done.stderr[-2000:]
     assert "Traceback" not in done.stderr
     warned = [line for line in done.stderr.splitlines() if line.startswith("warning:")]
