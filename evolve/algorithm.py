@@ -41,7 +41,7 @@ from .evaluation import EvalLimits
 from .export import SeedNames, export_settings, finish, unchanged
 from .generation import cost, evaluate, record
 from .genome import Genome
-from .isolated import IsolatedChecks
+from .isolated import IsolatedChecks, check_kill_after
 from .listeners import OnGeneration, RunDirWriter, RunListener
 from .operators import initialize
 from .plan import Plan, check_arguments, make_plan
@@ -159,7 +159,7 @@ def _evolve(
     run.exported = False
     if plan.backend != "serial":  # the checks where the evaluations are: apart from the run
         run.isolated = IsolatedChecks(plan.task, plan.skills,
-                                      EvalLimits(plan.cfg.eval_time_limit).kill_after)
+                                      check_kill_after(plan.cfg.eval_time_limit))
     try:
         if run.isolated is not None:
             run.isolated.start()

@@ -40,7 +40,7 @@ from .evaluation import Guard
 from .genome import SkillSet
 from .pool import _die_with_parent, _init_worker
 
-__all__ = ["IsolatedChecks"]
+__all__ = ["IsolatedChecks", "check_kill_after"]
 
 T = TypeVar("T")
 
@@ -61,6 +61,15 @@ def _start(source: TaskRef | Task, shape: tuple[tuple[str, ...], bool], parent: 
 def _call(fn: Callable[..., T], args: tuple[Any, ...]) -> T:
     """Run ``fn(task, compiler, *args)`` in the child."""
     return fn(_CHILD["task"], _CHILD["compiler"], *args)
+
+
+def check_kill_after(time_limit: float | None) -> float | None:
+    """When the parent kills the checks' child whose episode has been armed that long [s]:
+    the limit plus max(5 s, half the limit). More grace than the pool gives a worker: an
+    episode that times out in the child scores worst alone, while a killed child fails its
+    whole check, so the child's own alarm (a tick after the limit at most) must come
+    first, even on a loaded machine. None: no limit."""
+    return None if time_limit is None else time_limit + max(5.0, 0.5 * time_limit)
 
 
 class IsolatedChecks:

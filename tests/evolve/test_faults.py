@@ -739,10 +739,13 @@ def test_a_check_stuck_where_no_signal_reaches_is_killed_after_the_limit() -> No
     child notes when each episode started, and the parent kills it a little after the
     limit; that check returns None as a time-out, and the next one runs in a new child."""
     from skillcompose.evolve.evaluation import EvalLimits
-    from skillcompose.evolve.isolated import IsolatedChecks
+    from skillcompose.evolve.isolated import IsolatedChecks, check_kill_after
 
+    # a run gives its checks more grace than its workers: the limit and max(5 s, 50 %)
+    assert (check_kill_after(2.0), check_kill_after(60.0), check_kill_after(None)) == \
+        (7.0, 90.0, None)
     task = load_task("examples.toy_task")
-    limits = EvalLimits(0.3)
+    limits = EvalLimits(0.3)  # here the worker's grace, to keep the test short
     checks = IsolatedChecks(task, SkillSet.from_task(task), limits.kill_after)
     try:
         checks.start()
