@@ -672,6 +672,13 @@ def bench_table(bench: Bench, rows: Sequence[Row]) -> list[str]:
     return out
 
 
+def only_matches(only: str, name: str) -> bool:
+    """Whether ``--only ONLY`` takes the benchmark ``name``: ``=NAME`` that name alone (one
+    whose name is part of others', such as ``pour water (noisy)``), else any name holding
+    ONLY."""
+    return only[1:] == name if only.startswith("=") else only in name
+
+
 def head_sep(head: str) -> str:
     return "|" + "---|" * (head.count("|") - 1)
 
@@ -1080,7 +1087,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true",
                    help="a smoke test: the maze and Santa Fe, 2 seeds, tiny budgets")
     p.add_argument("--only", action="append", default=[], metavar="NAME",
-                   help="only the benchmarks whose name contains NAME (repeatable)")
+                   help="only the benchmarks whose name contains NAME, or is NAME exactly "
+                        "when it starts with = (repeatable)")
     p.add_argument("--config", action="append", default=[], metavar="NAME",
                    help="only these settings (repeatable; names as in the tables, e.g. "
                         "'deterministic + neutral'), where a benchmark compares them")
@@ -1112,7 +1120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.out = args.out or str(ROOT / "docs" / "results")
     benches = [b for b in BENCHES if args.full or not b.full_only]
     if args.only:
-        benches = [b for b in benches if any(s in b.name for s in args.only)]
+        benches = [b for b in benches if any(only_matches(s, b.name) for s in args.only)]
     if args.quick:
         benches = [b for b in benches if b.name in QUICK]
     if not benches:

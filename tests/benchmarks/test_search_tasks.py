@@ -291,3 +291,11 @@ def test_more_seeds_from_the_same_first_seed_replace_the_shorter_section() -> No
     assert [line for line in text.splitlines() if line.startswith("## ")] == [
         f"## {long}", "## maze, sensing, seeds 1000–1009"]
     assert "ten seeds" not in text and "twenty seeds" in text
+
+
+def test_only_with_an_equals_sign_takes_one_benchmark_whose_name_others_contain() -> None:
+    names = [b.name for b in bench_search.BENCHES]
+    assert sum(bench_search.only_matches("pour water (noisy)", n) for n in names) == 2
+    assert [n for n in names if bench_search.only_matches("=pour water (noisy)", n)] == \
+        ["pour water (noisy)"]
+    assert not any(bench_search.only_matches("=pour water", n) for n in names)
