@@ -12,8 +12,9 @@ genome compiler. A check that kills the child returns ``None``: its caller score
 failed and counts it as ``lost``, and the next check starts a new child. So does a check
 whose episode runs past the evaluation time limit where no signal stops it (code that
 blocks ``SIGALRM``, a wait in C): the child notes when each episode started
-(:attr:`~.evaluation.Guard.watch`), and the parent kills it a little after the limit, as
-the pool kills a worker; that check counts as a time-out.
+(:attr:`~.evaluation.Guard.watch`), and the parent kills it once an episode is past the
+limit and a grace (:func:`check_kill_after`), as the pool kills a worker; that check counts
+as a time-out.
 
 The checks are the same functions on every backend (the serial backend calls them in the
 evolving process), drawing the same worlds from the same seeds, so a run is the same
@@ -115,13 +116,16 @@ class IsolatedChecks:
         child starts for the next call). ``fn`` must be a module-level function and catch
         its own episodes' faults, as :func:`~.evaluation.iter_episodes` does."""
         pool = self._open()
-        future = pool.submit(_call, fn, args)
         tick = None if self.kill_after is None else min(1.0, self.kill_after / 4)
         killed = False
         try:
+            future = pool.submit(_call, fn, args)
             while True:
                 try:
-                    return future.result(timeout=tick)
+                    got = future.result(timeout=tick)
+                    if killed:  # it finished as it was killed: a new child for the next
+                        self.close()
+                    return got
                 except FutureTimeout:
                     started = self._watch.value
                     if not killed and self.kill_after is not None and started >= 0 and \
