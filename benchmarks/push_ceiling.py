@@ -33,15 +33,19 @@ to each chosen placement by least squares (CasADi and IPOPT, :func:`fit_network`
 the FSA of those networks, as the task runs it, on ``--worlds`` fresh worlds: the gap
 between the two is what the network's precision costs. The same is done with 12 hidden
 units in place of 3 (``network=layered-12``, not the paper's), to tell the network's size
-from the placements as the cause.
+from the placements as the cause. Last, the paper's network in two stages
+(:func:`measure_staged`): a *staging* move that puts the robot at a fixed pose relative to
+the object, then placements tried in order from there, every move fitted the same way; the
+FSA of them runs on fresh worlds and on the PR2 model, and is written beside the page
+(``push_ceiling_staged.fsa.yaml``).
 
 ``--worlds`` worlds of each kind, seed ``--seed``::
 
     python benchmarks/push_ceiling.py                  # 2,000 worlds of each kind
     python benchmarks/push_ceiling.py --worlds 50 --out /tmp/pc   # a quick look
 
-Writes ``push_ceiling.md`` and ``push_ceiling.json`` in ``--out`` (default
-``docs/results``).
+Writes ``push_ceiling.md``, ``push_ceiling.json`` and ``push_ceiling_staged.fsa.yaml`` in
+``--out`` (default ``docs/results``).
 """
 
 from __future__ import annotations
