@@ -585,13 +585,19 @@ def _wide_finding(rows: list[dict[str, Any]], n: int) -> list[str]:
            f": still short of the exact moves ({100 * last['fresh'] / n:.1f} %).")]
 
 
+def share_of(k: int, n: int) -> str:
+    """``k`` of ``n`` as the page writes it, with its two-sided 95 % Clopper–Pearson
+    interval."""
+    low, high = rate_bounds(k, n, 0.025)
+    return f"{k:,}/{n:,} = {100 * k / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
+
+
 def blind_section(blind: dict[str, Any]) -> list[str]:
     """The page's section on the table-blind placements."""
     n = blind["worlds"]
 
     def share(k: int) -> str:
-        low, high = rate_bounds(k, n, 0.025)
-        return f"{k:,}/{n:,} = {100 * k / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
+        return share_of(k, n)
 
     lines = [
         "", "## Without seeing the table", "",
@@ -660,10 +666,6 @@ def staged_section(staged: dict[str, Any] | None) -> list[str]:
     if not staged:
         return []
 
-    def share(k: int, n: int) -> str:
-        low, high = rate_bounds(k, n, 0.025)
-        return f"{k:,}/{n:,} = {100 * k / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
-
     n, judged = staged["worlds"], staged["pr2_judged"]
     moves = len(staged["stages"]) + len(staged["placements"])
     lines = [
@@ -706,8 +708,8 @@ def staged_section(staged: dict[str, Any] | None) -> list[str]:
         return "below the issue's 90 % target"
 
     lines += [
-        "", f"- Fresh paper worlds: {share(staged['pushed'], n)}, {against(fresh, low_fresh)}.",
-        f"- The PR2 model, {judged} judged placements: {share(staged['pr2_pushed'], judged)}, "
+        "", f"- Fresh paper worlds: {share_of(staged['pushed'], n)}, {against(fresh, low_fresh)}.",
+        f"- The PR2 model, {judged} judged placements: {share_of(staged['pr2_pushed'], judged)}, "
         f"{against(pr2, low_pr2)} (the paper's real robot: 82 %).",
         "- So the one-move figures above bound FSAs that move once per placement, not the "
         "paper's network: in an FSA of "
