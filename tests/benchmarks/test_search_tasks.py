@@ -151,6 +151,21 @@ def test_a_partial_run_keeps_the_other_sections_and_names_their_runs() -> None:
     assert bench_search.merge_page(old, old, ["all"]) == old  # nothing kept: as measured
 
 
+def test_a_kept_section_gets_the_fresh_columns_present_head_and_keeps_its_values() -> None:
+    row = "| push | 150 | 0/5 | — | 0.334 | 0.321 |"
+    old = ("# Search\n\nCommand: `x`  \nMachine: old.\n\n## move to push\n\n"
+           f"{bench_search.RUN_MARK}of then.\n\n"
+           "| settings | fresh episodes solved (of 1000), median | the same, simplified, "
+           f"median |\n{row}\n\n## maze (wall following)\n\nold maze\n")
+    new = ("# Search\n\nCommand: `y`  \nMachine: new.\n\n## maze (wall following)\n\n"
+           f"{bench_search.RUN_MARK}of now.\n\nnew maze\n")
+    text = bench_search.merge_page(old, new, ["maze (wall following)"])
+    assert "fresh episodes solved (of" not in text
+    assert f"| settings | {bench_search.fresh_header(1000)} | the same" in text
+    assert bench_search.fresh_header(1000) == "share of 1000 fresh episodes solved, median"
+    assert row in text  # the values as measured
+
+
 def _page(command: str, machine: str, sections: list[tuple[str, str, str]]) -> str:
     """A page of this script: its head, then each section (name, run, body)."""
     return (f"# Search\n\nCommand: `{command}`  \nMachine: {machine}.\n\n" +
