@@ -82,11 +82,46 @@ def test_a_network_the_paper_did_not_use_runs_ours_alone_and_sets_no_target(
 @pytest.mark.kinematics
 def test_stacking_on_the_fitted_reach_nests_that_file_and_sets_no_target(
         tmp_path: Path) -> None:
-    rows, text = _quick_run(tmp_path, "stacking-staged-reach", "ours")
-    assert [(r["experiment"], r["reach_file"]) for r in rows] == [
-        ("stacking-staged-reach", "docs/results/push_ceiling_staged.fsa.yaml (layered)")]
+    rows, text = _quick_run(tmp_path, "stacking-staged-reach", "ours,reference")
+    reach = "docs/results/push_ceiling_staged.fsa.yaml (layered)"
+    assert [(r["experiment"], r["algorithm"], r["reach_file"]) for r in rows] == [
+        ("stacking-staged-reach", "ours", reach),
+        ("stacking-staged-reach", "reference", reach)]
     assert "- stacking-staged-reach, ours, paper worlds (its MoveToReach was fitted, not " \
         "evolved, so not one of the issue's targets)" in text
+    ref = rows[1]  # not evolved: no episodes spent, measured on the same 50 fresh worlds
+    assert (ref["episodes"], ref["generations"], ref["fresh_episodes"]) == (0, 0, 50)
+    assert ref["fresh_successes"] > 0 and ref["fresh_fitness"] is not None
+    assert "| stacking-staged-reach | reference, not evolved | paper | 0 | — (not evolved) " \
+        in text
+    assert "## What the fitness rewards" in text
+
+
+def _row(algorithm: str, seed: int, stacked: int, fitness: float) -> Any:
+    return compare_paper.Row(
+        experiment="stacking", algorithm=algorithm, world="paper", seed=seed, solved=False,
+        solved_by="holds", generations=1, episodes=1, budget_episodes=1, wall_s=0.0,
+        states=5, fresh_successes=stacked, fresh_episodes=100, robot_successes=0,
+        robot_episodes=0, fresh_fitness=fitness)
+
+
+def test_the_page_says_when_the_fitness_ranks_runs_that_succeed_less_above_the_reference(
+        ) -> None:
+    ref = [_row("reference", s, 50, 4.0) for s in (0, 1)]
+    # a run that never stacks but scores 3.6 (lower is better) on its seed's worlds
+    misled = compare_paper._fitness_ranks([_row("ours", 0, 0, 3.6), _row("ours", 1, 0, 4.5),
+                                           *ref])
+    assert len(misled) == 1
+    assert "the reference succeeds in 50.0 % of the fresh worlds and ours in 0.0 %" in misled[0]
+    assert "in 1 of 2 seeds ours scores better than the reference" in misled[0]
+    assert "In those seeds the fitness ranks an FSA that succeeds less above" in misled[0]
+    every = compare_paper._fitness_ranks([_row("ours", 0, 0, 3.6), *ref])
+    assert "ranks every run's FSA above the reference" in every[0]
+    fair = compare_paper._fitness_ranks([_row("ours", 0, 0, 4.4), *ref])
+    assert "in 0 of 1 seeds" in fair[0] and "fell short of what the fitness rewards" in fair[0]
+    level = compare_paper._fitness_ranks([_row("ours", 0, 60, 3.6), *ref])
+    assert "Ours succeeds at least as often as the reference." in level[0]
+    assert compare_paper._fitness_ranks(ref) == []  # nothing to compare
 
 
 def test_unknown_experiments_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
