@@ -366,16 +366,18 @@ def _ranks_verdict(above: int, seeds: int, succeeds_less: bool) -> str:
                 "less: on these worlds the search optimises what it was given, and that does "
                 "not reward success.")
     if above:
-        return ("In those seeds the fitness ranks an FSA that succeeds less above the one "
-                "that succeeds more; in the others the search also fell short of what the "
-                "fitness rewards.")
+        return (f"In {'that seed' if above == 1 else 'those seeds'} the fitness ranks an FSA "
+                "that succeeds less above the one that succeeds more; in the others the search "
+                "also fell short of what the fitness rewards.")
     return "The search fell short of what the fitness rewards: the reference scores better."
 
 
 def _fitness_ranks(rows: Sequence[Row]) -> list[str]:
-    """Where the runs of ``ours`` stack less than the reference on the same fresh worlds,
-    whether the task's fitness ranks them below it (the search fell short of what it was
-    asked) or above it (it found what the fitness rewards, which is not what succeeds)."""
+    """For each experiment with runs of ``ours`` and its reference on the same fresh worlds:
+    how often each succeeds, the task's mean fitness of each, and in how many seeds the
+    fitness ranks the run above the reference: where the runs succeed less, whether the
+    search fell short of what it was asked or found what the fitness rewards, which is then
+    not what succeeds."""
     lines = []
     for exp in EXPERIMENTS.values():
         for world in WORLDS:

@@ -114,7 +114,7 @@ def test_the_page_says_when_the_fitness_ranks_runs_that_succeed_less_above_the_r
     assert len(misled) == 1
     assert "the reference succeeds in 50.0 % of the fresh worlds and ours in 0.0 %" in misled[0]
     assert "in 1 of 2 seeds ours scores better than the reference" in misled[0]
-    assert "In those seeds the fitness ranks an FSA that succeeds less above" in misled[0]
+    assert "In that seed the fitness ranks an FSA that succeeds less above" in misled[0]
     every = compare_paper._fitness_ranks([_row("ours", 0, 0, 3.6), *ref])
     assert "ranks every run's FSA above the reference" in every[0]
     fair = compare_paper._fitness_ranks([_row("ours", 0, 0, 4.4), *ref])
