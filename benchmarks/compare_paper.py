@@ -62,7 +62,6 @@ import numpy as np
 from skillcompose import FSA, load_fsa, save_fsa
 from skillcompose.arguments import output_dir
 from skillcompose.evolve import PRESETS, EvolutionConfig, evolve
-from skillcompose.executor import trial_rngs
 from skillcompose.stats import estimate
 from skillcompose.task import Task, load_task
 
@@ -211,15 +210,8 @@ def load(exp: Experiment, world: str, reach: Reach | None, **more: Any) -> Task:
 def successes(task: Task, fsa: FSA, seed: int, episodes: int) -> tuple[int, float]:
     """How many of ``episodes`` worlds drawn from ``seed`` reach the task's target, and the
     task's mean fitness on them."""
-    compiled = task.compile(fsa)
-    count, total = 0, 0.0
-    for rng in trial_rngs(seed, episodes):
-        bb = task.setup(rng)
-        result = compiled.run(bb, rng)
-        f = task.score(result, bb)
-        count += task.solved(f)
-        total += f
-    return count, total / episodes if episodes else math.nan
+    scores = [t.fitness for t in task.each_trial(task.compile(fsa), seed, episodes)]
+    return sum(map(task.solved, scores)), statistics.fmean(scores) if scores else math.nan
 
 
 def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: int,
