@@ -168,14 +168,37 @@ def test_fitness_cases() -> None:
     dropped = world(object_positions_world={"box": (0.6, -0.3, 0.81), "bottle": SECOND},
                     objects_grasped=("box",))
     assert task_module.fitness("failure", dropped, 9) == pytest.approx(math.hypot(0.2, 0.12))
-    # d is 0 when one stands on the other: held right on top scores near 0, not 0.12
+    # d is 0 when one stands on the other: held right on top scores near 0, not 0.12, but
+    # no better than the 1 cm tolerance of stacked, so 0 is a stacked success's alone
     held_on_top = world(object_positions_world={"box": (0.6, -0.1, 0.935), "bottle": SECOND},
                         objects_grasped=("box",), held_object_right="box")
-    assert task_module.fitness("failure", held_on_top, 9) == pytest.approx(0.005)
+    assert task_module.fitness("failure", held_on_top, 9) == pytest.approx(0.01)
+    held_at_zero = world(object_positions_world={"box": (0.6, -0.1, 0.93), "bottle": SECOND},
+                         objects_grasped=("box",), held_object_right="box")
+    assert task_module.distance(held_at_zero) == pytest.approx(0.0)
+    assert task_module.fitness("timeout", held_at_zero, 15) == pytest.approx(0.02)
+    assert not task_module.make_task().solved(task_module.fitness("timeout", held_at_zero, 15))
     touching = world(object_positions_world={"box": (0.6, -0.16, 0.81), "bottle": SECOND},
                      objects_grasped=("box",))
     assert task_module.fitness("failure", touching, 9) > \
         task_module.fitness("failure", held_on_top, 9)
+
+
+def test_ending_names_where_a_run_stopped_and_only_stacked_scores_0() -> None:
+    on_top = {"box": (0.6, -0.1, 0.93), "bottle": SECOND}
+    cases = [
+        ("success", world(object_positions_world=on_top, objects_grasped=("box",)),
+         "stacked"),
+        ("timeout", world(object_positions_world=on_top, objects_grasped=("box",),
+                          held_object_right="box"), "holding an object"),
+        ("timeout", world(object_positions_world=on_top, objects_grasped=("box",)),
+         "let go, no stacked success"),  # stood on it, the steps ran out before CheckSuccess
+        ("failure", world(objects_grasped=("box",)), "let go, no stacked success"),
+        ("timeout", world(), "never grasped"),
+    ]
+    for outcome, bb, name in cases:
+        assert task_module.ending(outcome, bb) == name and name in task_module.ENDINGS
+        assert (name == "stacked") == (task_module.fitness(outcome, bb, 15) == 0.0)
 
 
 def test_task_settings_are_checked() -> None:
