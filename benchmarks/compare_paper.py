@@ -45,6 +45,7 @@ comparison can be stopped, continued and extended.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import os
@@ -52,7 +53,8 @@ import platform
 import statistics
 import sys
 import time
-from collections.abc import Sequence
+from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -167,6 +169,8 @@ class Row:
     robot_episodes: int
     reach_file: str = ""  # stacking: the MoveToReach file it nested
     fresh_fitness: float | None = None  # the task's mean fitness on the fresh episodes
+    # how the fresh episodes ended (the task module's ``ending``), empty in older rows
+    fresh_endings: dict[str, int] = field(default_factory=dict)
     fsa: str = field(default="", repr=False)  # the exported FSA as YAML text
 
     @property
@@ -210,8 +214,22 @@ def load(exp: Experiment, world: str, reach: Reach | None, **more: Any) -> Task:
 def successes(task: Task, fsa: FSA, seed: int, episodes: int) -> tuple[int, float]:
     """How many of ``episodes`` worlds drawn from ``seed`` reach the task's target, and the
     task's mean fitness on them."""
-    scores = [t.fitness for t in task.each_trial(task.compile(fsa), seed, episodes)]
-    return sum(map(task.solved, scores)), statistics.fmean(scores) if scores else math.nan
+    ok, fitness, _ = measure(task, fsa, seed, episodes)
+    return ok, fitness
+
+
+def measure(task: Task, fsa: FSA, seed: int, episodes: int,
+            ending: Callable[[str, Any], str] | None = None) -> tuple[int, float, dict[str, int]]:
+    """:func:`successes`, and how many of the runs ended each way ``ending(outcome,
+    blackboard)`` tells apart (empty without it)."""
+    scores: list[float] = []
+    endings: Counter[str] = Counter()
+    for t in task.each_trial(task.compile(fsa), seed, episodes):
+        scores.append(t.fitness)
+        if ending is not None:
+            endings[ending(t.result.outcome, t.blackboard)] += 1
+    return (sum(map(task.solved, scores)), statistics.fmean(scores) if scores else math.nan,
+            dict(endings))
 
 
 def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: int,
@@ -230,7 +248,8 @@ def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: i
         solved, solved_by, generations, episodes, wall = r.solved, r.solved_by, \
             r.generations, r.evaluations, round(r.wall_time, 1)
         budget = cfg.max_episodes or cfg.population * (cfg.generations + 1)
-    fresh_ok, fresh_fitness = successes(task, fsa, FRESH_SEED + seed, fresh)
+    fresh_ok, fresh_fitness, endings = measure(task, fsa, FRESH_SEED + seed, fresh,
+                                               _module(exp).ending)
     robot_task = load(exp, world, reach, **exp.robot_settings)
     robot_ok, _ = successes(robot_task, fsa, ROBOT_SEED + seed, robot)
     from skillcompose.fsafile import dumps_fsa
@@ -239,13 +258,18 @@ def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: i
         experiment=exp.name, algorithm=algorithm, world=world, seed=seed, solved=solved,
         solved_by=solved_by, generations=generations, episodes=episodes,
         budget_episodes=budget, wall_s=wall, states=len(fsa.states),
-        fresh_successes=fresh_ok, fresh_fitness=round(fresh_fitness, 6),
+        fresh_successes=fresh_ok, fresh_fitness=round(fresh_fitness, 6), fresh_endings=endings,
         fresh_episodes=fresh, robot_successes=robot_ok, robot_episodes=robot,
         reach_file="" if reach is None else
         f"{reach[0].relative_to(ROOT) if reach[0].is_relative_to(ROOT) else reach[0].name} "
         f"({reach[1]})",
         fsa=_relative(dumps_fsa(fsa, task.registry)),
     )
+
+
+def _module(exp: Experiment) -> Any:
+    """The experiment's task module (its ``ending`` and ``ENDINGS``)."""
+    return importlib.import_module(exp.module)
 
 
 def _relative(text: str) -> str:
@@ -399,6 +423,33 @@ def _fitness_ranks(rows: Sequence[Row]) -> list[str]:
     return lines
 
 
+def _endings(rows: Sequence[Row]) -> list[str]:
+    """One table per task: how the fresh episodes of each (experiment, algorithm, world)
+    ended, pooled over its seeds, in the task's own words (its ``ENDINGS``); rows measured
+    before the endings were counted are left out."""
+    lines: list[str] = []
+    for module in dict.fromkeys(exp.module for exp in EXPERIMENTS.values()):
+        names: tuple[str, ...] = importlib.import_module(module).ENDINGS
+        body = []
+        for exp in (e for e in EXPERIMENTS.values() if e.module == module):
+            for world in WORLDS:
+                for algorithm, label in ALGORITHMS.items():
+                    sel = [r for r in rows if (r.experiment, r.algorithm, r.world)
+                           == (exp.name, algorithm, world) and r.fresh_endings]
+                    if not sel:
+                        continue
+                    n = sum(r.fresh_episodes for r in sel)
+                    counts = [sum(r.fresh_endings.get(k, 0) for r in sel) for k in names]
+                    cells = " | ".join(f"{c:,} ({100 * c / n:.1f} %)" for c in counts)
+                    body.append(f"| {exp.name} | {label} | {world} | {len(sel)} | {n:,} | "
+                                f"{cells} |")
+        if body:
+            lines += ["", f"| experiment | algorithm | world | runs | fresh episodes | "
+                      f"{' | '.join(names)} |",
+                      "|---|---|---|---:|---:|" + "---:|" * len(names), *body]
+    return lines
+
+
 def _targets(rows: Sequence[Row]) -> list[str]:
     lines = []
     for exp in EXPERIMENTS.values():
@@ -498,6 +549,17 @@ def report(rows: list[Row], command: str, started: str, load_before: str, load_a
                  "`examples/stacking.py` reads it: 50 for a run that never grasped, the "
                  "distance between the objects otherwise, twice that on a timeout, 0 "
                  "stacked).", "", *ranks, ""] if (ranks := _fitness_ranks(rows)) else []),
+              *(["## How the fresh episodes end", "",
+                 "Where each algorithm's exported FSAs (and each reference) stop on the fresh "
+                 "worlds, pooled over the seeds, in each task's words (`ending` in its "
+                 "module): for push, `Push out of reach` is a placement the reachability "
+                 "classifier refuses for the chosen arm, `out of steps` a run whose MoveBases "
+                 "failed or looped until the step limit; for stacking, `holding an object` "
+                 "is a run that still held an object at the end (the second MoveToReach or "
+                 "MoveGripperToStack failing with it in hand, or the steps running out "
+                 "before it was let go), `never grasped` one that never brought an object "
+                 "into reach.", *ends, ""]
+                if (ends := _endings(rows)) else []),
               "## Every run", "", *_per_run(rows), ""]
     return "\n".join(lines)
 

@@ -104,6 +104,7 @@ from typing import Any, Literal, get_args
 import numpy as np
 
 from skillcompose import Blackboard, Registry
+from skillcompose.fsa import TIMEOUT
 from skillcompose.robots.collision import BASE_HALF_EXTENTS_M, Box
 from skillcompose.skills import kinematic as skills_kinematic
 from skillcompose.skills import move_to_push as skills_push
@@ -117,11 +118,13 @@ from skillcompose.skills.network import TOPOLOGIES, Topology
 from skillcompose.task import Task, TaskError
 
 __all__ = [
+    "ENDINGS",
     "JUDGE_MAX_DISTANCE_M",
     "OBJECT_BAND_M",
     "ROOM_HALF_M",
     "WORLDS",
     "World",
+    "ending",
     "fitness",
     "make_task",
     "random_world",
@@ -257,6 +260,24 @@ def setup(
 def fitness(outcome: str, bb: Blackboard, steps: int) -> float:
     """1 when the run ended with the object pushed, else 0 (maximised)."""
     return 1.0 if outcome == "success" and bb.get("pushed", False) else 0.0
+
+
+ENDINGS = ("pushed", "Push out of reach", "out of steps", "ended otherwise")
+"""How a run of this task can end (:func:`ending`)."""
+
+
+def ending(outcome: str, bb: Blackboard) -> str:
+    """Where a run ended, one of :data:`ENDINGS`: ``pushed``; ``Push out of reach`` (the run
+    ended in ``failure``, which in an FSA evolved for this task only Push, its one terminating
+    skill, gives: the object was not in reach of the arm MoveBase chose, or no MoveBase had
+    succeeded); ``out of steps`` (the run timed out before any Push, its
+    MoveBases failing or looping); ``ended otherwise`` (a skill raised). What a report
+    counts to say why an FSA falls short."""
+    if outcome == "success" and bb.get("pushed", False):
+        return ENDINGS[0]
+    if outcome == "failure":
+        return ENDINGS[1]
+    return ENDINGS[2] if outcome == TIMEOUT else ENDINGS[3]
 
 
 def register(registry: Registry, *, network: Topology = "layered") -> None:

@@ -128,3 +128,19 @@ def test_unknown_experiments_are_refused(capsys: pytest.CaptureFixture[str]) -> 
     with pytest.raises(SystemExit):
         compare_paper.main(["--experiments", "push-layered,push-cnn"])
     assert "--experiments: unknown ['push-cnn']" in capsys.readouterr().err
+
+
+def test_the_page_counts_how_the_fresh_episodes_end_in_each_tasks_words() -> None:
+    ours = [compare_paper.Row(
+        experiment="stacking", algorithm="ours", world="paper", seed=seed, solved=False,
+        solved_by="holds", generations=1, episodes=1, budget_episodes=1, wall_s=0.0,
+        states=5, fresh_successes=stacked, fresh_episodes=100, robot_successes=0,
+        robot_episodes=0, fresh_endings={"stacked": stacked, "never grasped": 100 - stacked})
+        for seed, stacked in ((0, 10), (1, 30))]
+    old = _row("reference", 0, 50, 3.0)  # measured before endings were counted: left out
+    lines = compare_paper._endings([*ours, old])
+    assert lines[1] == ("| experiment | algorithm | world | runs | fresh episodes | stacked | "
+                        "holding an object | let go, no stacked success | never grasped |")
+    assert lines[3:] == ["| stacking | ours | paper | 2 | 200 | 40 (20.0 %) | 0 (0.0 %) | "
+                         "0 (0.0 %) | 160 (80.0 %) |"]
+    assert compare_paper._endings([old]) == []

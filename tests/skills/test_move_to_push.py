@@ -186,6 +186,18 @@ def test_fitness_is_success_of_the_push() -> None:
     assert fitness("timeout", Blackboard({}), 20) == 0.0
 
 
+def test_ending_names_where_a_run_stopped_and_agrees_with_the_fitness() -> None:
+    from examples.move_to_push import ENDINGS, ending, fitness
+
+    cases = {("success", True): "pushed", ("success", False): "ended otherwise",
+             ("failure", False): "Push out of reach", ("timeout", False): "out of steps",
+             ("error", False): "ended otherwise"}
+    for (outcome, pushed), name in cases.items():
+        bb = Blackboard({"pushed": pushed})
+        assert ending(outcome, bb) == name and name in ENDINGS
+        assert (name == "pushed") == (fitness(outcome, bb, 3) == 1.0)
+
+
 def test_task_settings_are_checked() -> None:
     from skillcompose import TaskError
 
