@@ -270,9 +270,9 @@ def ending(outcome: str, bb: Blackboard) -> str:
     """Where a run ended, one of :data:`ENDINGS`: ``pushed``; ``Push out of reach`` (the run
     ended in ``failure``, which in an FSA evolved for this task only Push, its one terminating
     skill, gives: the object was not in reach of the arm MoveBase chose, or no MoveBase had
-    succeeded); ``out of steps`` (the run timed out before any Push, its
-    MoveBases failing or looping); ``ended otherwise`` (a skill raised). What a report
-    counts to say why an FSA falls short."""
+    succeeded); ``out of steps`` (the run timed out before any Push, its MoveBases failing
+    or looping); ``ended otherwise`` (a skill raised). What a report counts to say why an
+    FSA falls short."""
     if outcome == "success" and bb.get("pushed", False):
         return ENDINGS[0]
     if outcome == "failure":
