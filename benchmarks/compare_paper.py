@@ -210,16 +210,10 @@ def load(exp: Experiment, world: str, reach: Reach | None, **more: Any) -> Task:
     return load_task(exp.module, **settings)
 
 
-def successes(task: Task, fsa: FSA, seed: int, episodes: int) -> tuple[int, float]:
-    """How many of ``episodes`` worlds drawn from ``seed`` reach the task's target, and the
-    task's mean fitness on them."""
-    ok, fitness, _ = measure(task, fsa, seed, episodes)
-    return ok, fitness
-
-
 def measure(task: Task, fsa: FSA, seed: int, episodes: int,
             ending: Callable[[str, Any], str] | None = None) -> tuple[int, float, dict[str, int]]:
-    """:func:`successes`, and how many of the runs ended each way ``ending(outcome,
+    """How many of ``episodes`` worlds drawn from ``seed`` reach the task's target, the task's
+    mean fitness on them, and how many of the runs ended each way ``ending(outcome,
     blackboard)`` tells apart (empty without it)."""
     scores: list[float] = []
     endings: Counter[str] = Counter()
@@ -248,9 +242,9 @@ def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: i
             r.generations, r.evaluations, round(r.wall_time, 1)
         budget = cfg.max_episodes or cfg.population * (cfg.generations + 1)
     fresh_ok, fresh_fitness, endings = measure(task, fsa, FRESH_SEED + seed, fresh,
-                                               _module(exp).ending)
+                                               importlib.import_module(exp.module).ending)
     robot_task = load(exp, world, reach, **exp.robot_settings)
-    robot_ok, _ = successes(robot_task, fsa, ROBOT_SEED + seed, robot)
+    robot_ok, _, _ = measure(robot_task, fsa, ROBOT_SEED + seed, robot)
     from skillcompose.fsafile import dumps_fsa
 
     return Row(
@@ -264,11 +258,6 @@ def run_case(exp: Experiment, algorithm: str, world: str, seed: int, *, fresh: i
         f"({reach[1]})",
         fsa=_relative(dumps_fsa(fsa, task.registry)),
     )
-
-
-def _module(exp: Experiment) -> Any:
-    """The experiment's task module (its ``ending`` and ``ENDINGS``)."""
-    return importlib.import_module(exp.module)
 
 
 def _relative(text: str) -> str:
