@@ -28,10 +28,11 @@ processed, the sum of its generations' sizes, and ``P`` the share of runs solved
 individuals (:func:`effort_in_individuals`; for a fixed population the same figure), and such
 a run stops once it has processed its budget in individuals. Its 95 % interval is a
 percentile bootstrap over the runs (2000 resamples); an upper end of infinity means that
-some resamples hold no solved run. Beside it, the effort in episodes counts what was
-actually run (a cache, repeated trials and confirmations change it): the same minimum with
-the mean episodes the runs had spent by generation ``i`` (by ``x`` individuals) in place of
-``M (i + 1)``.
+some resamples hold no solved run; the ratio of two efforts (a task in its two
+representations) has its own interval (:func:`bootstrap_ratio`). Beside it, the effort in
+episodes counts what was actually run (a cache, repeated trials and confirmations change
+it): the same minimum with the mean episodes the runs had spent by generation ``i`` (by
+``x`` individuals) in place of ``M (i + 1)``.
 """
 
 from __future__ import annotations
@@ -598,6 +599,41 @@ def bootstrap_effort(solved_at: Sequence[int | None], population: int, generatio
     return float(lo), float(hi)
 
 
+def bootstrap_ratio(solved: Sequence[int | None], other: Sequence[int | None],
+                    resamples: int = 2000, seed: int = 0) -> tuple[float, float, int]:
+    """95 % percentile bootstrap interval of the ratio of two efforts, ``solved``'s over
+    ``other``'s (each the individuals every run had processed when solved, None: not
+    solved), resampling the runs of each side on its own, as the two were run apart.
+
+    A resample in which neither side solved a run has no ratio (infinity over infinity): it
+    is left out, and the third value counts such resamples; one side unsolved alone gives 0
+    or infinity, which the interval keeps."""
+    rng = np.random.default_rng(seed)
+    a, b = list(solved), list(other)
+    ratios = []
+    undefined = 0
+    for _ in range(resamples):
+        ea = effort_in_individuals([a[int(k)] for k in rng.integers(len(a), size=len(a))])
+        eb = effort_in_individuals([b[int(k)] for k in rng.integers(len(b), size=len(b))])
+        if math.isinf(ea) and math.isinf(eb):
+            undefined += 1
+        else:
+            ratios.append(math.inf if math.isinf(ea) else 0.0 if math.isinf(eb) else ea / eb)
+    if not ratios:
+        return math.nan, math.nan, undefined
+    lo, hi = np.quantile(np.array(ratios), [0.025, 0.975], method="inverted_cdf")
+    return float(lo), float(hi), undefined
+
+
+def ratio_verdict(lo: float, hi: float, bound: float = 2.0) -> str:
+    """What a ratio's interval ``[lo, hi]`` says of a target of at most ``bound``."""
+    if hi <= bound:
+        return f"the interval lies at or below {bound:g}: these runs show the target met"
+    if lo > bound:
+        return f"the interval lies above {bound:g}: these runs show the target missed"
+    return f"the interval holds {bound:g}: these runs do not decide the target"
+
+
 def best_at(run: RunResult, budget: int) -> float:
     """The best fitness a run had reached within ``budget`` episodes."""
     within = [b for _, b, e in run.curve if e <= budget]
@@ -781,7 +817,11 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "largest) is counted by the individuals each run actually processed, the sum of its "
         "generations' sizes, in place of `M (i + 1)`. The "
         "interval is a 95 % percentile bootstrap over the runs (2000 resamples; ∞: some "
-        "resamples hold no solved run). *Effort (episodes)* is the same minimum with the "
+        "resamples hold no solved run). Where a target compares the efforts of a task's two "
+        "representations, their ratio has its own 95 % percentile bootstrap interval (2000 "
+        "resamples, the runs of each form resampled apart; a resample where neither form "
+        "solved a run has no ratio and is left out), and the line says whether that interval "
+        "decides the target. *Effort (episodes)* is the same minimum with the "
         "episodes the runs actually spent (cache hits cost none; repeated trials and "
         "confirmations count). *Best at N episodes*: the best fitness a run had reached "
         "within that many episodes, median over the seeds.",
@@ -1035,6 +1075,10 @@ def _figure(text: str) -> float | None:
         return None
 
 
+def _ratio(x: float) -> str:
+    return "—" if math.isnan(x) else "∞" if math.isinf(x) else f"{x:.2f}"
+
+
 def _span(row: Row) -> str:
     return f"{_num(row.effort)} [{_num(row.ci[0])}, {_num(row.ci[1])}]"
 
@@ -1075,10 +1119,15 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
             continue
         ratio = row.effort / them if math.isfinite(them) and them > 0 else math.inf
         ok = row.effort <= 2 * them
+        lo, hi, undefined = bootstrap_ratio([solved_individuals(r) for r in row.runs],
+                                            [solved_individuals(r) for r in other[name].runs])
+        spread = ("" if math.isnan(lo) else
+                  f" [{_ratio(lo)}, {_ratio(hi)}]" +
+                  (f" ({undefined} of 2000 resamples solved neither form: left out)"
+                   if undefined else "") + f"; {ratio_verdict(lo, hi)}")
         out.append(f"- {name}: at most twice the effort of the {bench.other_form} section "
                    f"({_num(2 * them)}): **{_yes(ok)}** ({_span(row)} against "
-                   f"{_span(other[name])}; ratio "
-                   f"{'—' if math.isnan(ratio) or math.isinf(ratio) else f'{ratio:.2f}'})")
+                   f"{_span(other[name])}; ratio {_ratio(ratio)}{spread})")
     if bench.fresh and DEFAULT in by and "robust" in by:
         new, old = by[DEFAULT], by["robust"]
         rates = [_median([r.fresh_rate for r in row.runs if r.fresh_rate is not None])

@@ -151,6 +151,24 @@ def test_the_issue_31_targets_read_both_representations() -> None:
                                "**yes**")
     assert lines[2].startswith("- default: at most twice the effort of the ant, Santa Fe "
                                "trail, reporting section (360): **no**")
+    # the ratio has an interval: a sensing resample with no solved run costs infinity, so
+    # the upper end is infinite; one whose runs all solved at 630 individuals costs 630, 3.5
+    # times the reporting form's 180, the lower end (all at 330, 1.83, is rarer than 2.5 %)
+    assert lines[2].endswith("; ratio 24.50 [3.50, ∞]; the interval lies above 2: these "
+                             "runs show the target missed)")
+    lo, hi, undefined = bench_search.bootstrap_ratio([330, 630, None, None], [180] * 4)
+    assert (lo, hi, undefined) == (3.5, math.inf, 0)
+    nothing = bench_search.bootstrap_ratio([None], [None])  # no resample has a ratio
+    assert math.isnan(nothing[0]) and math.isnan(nothing[1]) and nothing[2] == 2000
+    _, _, undefined = bench_search.bootstrap_ratio([None, 30], [None, 60])
+    assert 0 < undefined < 2000  # a quarter of the pairs of resamples solve neither
+    half = {bench.name: [row("default", [None, 0])], bench.other_form: [row("default",
+                                                                           [None, 1])]}
+    assert f"({undefined} of 2000 resamples solved neither form: left out)" in \
+        bench_search.form_targets(bench, half)[-1]
+    assert bench_search.ratio_verdict(0.5, 1.9).endswith("show the target met")
+    assert bench_search.ratio_verdict(0.5, 2.1).endswith("do not decide the target")
+    assert bench_search.ratio_verdict(2.1, 9.0).endswith("show the target missed")
     assert math.isinf(bench_search.koza_effort([None], 30, 5)[0])
     # neither form solved: the target cannot be met by two infinities
     unsolved = {bench.name: [row("default", [None, None])],
