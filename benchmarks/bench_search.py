@@ -144,6 +144,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "adaptive + drift 200": {**_IPOP, "drift_patience": 200},
     "adaptive + drift 800": {**_IPOP, "drift_patience": 800},
     "adaptive + pairs only": {**PRESETS["adaptive"], "pairs_only": True},
+    "adaptive + skill bias": {**PRESETS["adaptive"], "skill_bias": 0.5},
     "push": PRESETS["push"],
     "push + islands": {**PRESETS["push"], "islands": 3, "unique_children": True},
     # the push preset with its episodes spent otherwise, on the paper's worlds (issue 27)
@@ -217,7 +218,7 @@ CANDIDATES = ("deterministic", "deterministic + restarts", "deterministic + neut
               "adaptive, population 60", "adaptive + pairs",
               "adaptive + neutral, patience 400", "adaptive, patience 400",
               "adaptive + drift 400", "adaptive + drift 200", "adaptive + drift 800",
-              "adaptive, no drift stages", "adaptive + pairs only")
+              "adaptive, no drift stages", "adaptive + pairs only", "adaptive + skill bias")
 """More settings for the tuning runs of issue 31 (``--config NAME``): what the head's
 options give, for whoever turns the best into a default that adapts."""
 

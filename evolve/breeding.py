@@ -71,6 +71,8 @@ def _breed_island(
     rank = [0] * n
     for r, i in enumerate(order):
         rank[i] = r
+    if cfg.skill_bias > 0.0:  # what the island's best quarter uses, drawn more often
+        run.skills.learn((population[i] for i in order[:max(1, n // 4)]), cfg.skill_bias)
     for i in order[:cfg.elitism if keep is None else keep]:
         e = population[i].copy()
         e.origin = {**e.origin, "elite": True}

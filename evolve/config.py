@@ -86,6 +86,7 @@ class EvolutionConfig:
     neutral: bool = False
     pairs: bool = False
     pairs_only: bool = False
+    skill_bias: float = 0.0
     terminal_weight: float = 1.0
     checkpoint_every: int = 10
     chunks_per_worker: int = 2

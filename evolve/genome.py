@@ -105,6 +105,8 @@ class SkillSet:
         self.drawable = tuple(k for k, c in enumerate(self.choices)
                               if c.then is not None or c.name not in covered)
         self.index = {c.name: k for k, c in enumerate(self.choices) if c.then is None}
+        # the draw's cumulative weights over drawable (None: uniform, see learn())
+        self._cumulative: np.ndarray | None = None
         if not self.choices:
             raise SeedFSAError("the task lets evolution place no skills; list some in Task.skills")
         # the most nodes a genome may hold: what an FSA file holds and reads back (its
@@ -163,8 +165,34 @@ class SkillSet:
         the decision's own step, none in the ant's sensing form), so the choices differ
         from a task whose actions report what they sense (Jefferson's ant) by the plain
         decisions alone."""
-        k = int(rng.integers(len(self.drawable)))
+        if self._cumulative is None:
+            k = int(rng.integers(len(self.drawable)))
+        else:
+            u = rng.random() * float(self._cumulative[-1])
+            k = min(int(np.searchsorted(self._cumulative, u, side="right")),
+                    len(self.drawable) - 1)
         return self.drawable[k]
+
+    def learn(self, genomes: Iterable[Genome], share: float) -> None:
+        """Draw the skills (:meth:`draw`) with ``share`` of the weight as often as
+        ``genomes`` use them (each node counts once; a choice that is not drawable does
+        not count) and the rest uniformly; ``share`` 0, or genomes using no drawable
+        choice, gives the uniform draw back. Setting ``skill_bias``: the breeding calls it
+        with an island's best before each island's children."""
+        m = len(self.drawable)
+        position = {k: i for i, k in enumerate(self.drawable)}
+        counts = np.zeros(m)
+        for g in genomes:
+            for n in g.nodes.values():
+                i = position.get(n.skill)
+                if i is not None:
+                    counts[i] += 1.0
+        total = float(counts.sum())
+        if share <= 0.0 or total == 0.0:
+            self._cumulative = None
+            return
+        weights = (1.0 - share) / m + share * counts / total
+        self._cumulative = np.cumsum(weights)
 
     @property
     def shape(self) -> tuple[tuple[str, ...], bool]:

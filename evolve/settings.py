@@ -346,6 +346,14 @@ SETTINGS: tuple[Setting, ...] = (
             flag="--pairs-only",
             more="The skills evolution draws then differ from a task whose actions report "
             "what they sense by the plain decisions alone."),
+    Setting("skill_bias", Kind.REAL, "share of a random node's skill drawn as often as the "
+            "skills of the best quarter of its island's genomes are used, the rest uniform "
+            "(0: uniform, the paper's)", low=0.0, high=1.0, high_open=True,
+            flag="--skill-bias", metavar="A",
+            more="Learned afresh each generation from the population, as an estimation-of-"
+            "distribution algorithm learns its model, so a resumed run draws as the first "
+            "would: skills the best FSAs use (a sensing form's pairs, say) are placed more "
+            "often, and every skill keeps at least 1 - A of its uniform share."),
     # -- faults and limits ----------------------------------------------------------------
     Setting("eval_time_limit", Kind.REAL, "wall-clock limit of one evaluation (all its "
             "trials); past it, it scores the task's worst and counts as a time-out",
