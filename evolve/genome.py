@@ -158,13 +158,14 @@ class SkillSet:
         return len(self.choices)
 
     def draw(self, rng: np.random.Generator) -> int:
-        """A random node's skill: uniform over :attr:`drawable`. With every choice drawable
-        it is ``rng.integers(len(self))``, so the random stream is the one without
-        ``pairs_only``. With ``pairs_only`` an action covered by a pair is not drawn: a pair
-        whose decision's outcomes all lead to one state acts as the action alone (but for
-        the decision's own step, none in the ant's sensing form), so the choices differ
-        from a task whose actions report what they sense (Jefferson's ant) by the plain
-        decisions alone."""
+        """A random node's skill: uniform over :attr:`drawable`, or as :meth:`learn` last
+        weighted them (``skill_bias``; uniform again after it is given nothing to learn
+        from). Uniform with every choice drawable, it is ``rng.integers(len(self))``, so
+        the random stream is the one without ``pairs_only``. With ``pairs_only`` an action
+        covered by a pair is not drawn: a pair whose decision's outcomes all lead to one
+        state acts as the action alone (but for the decision's own step, none in the ant's
+        sensing form), so the choices differ from a task whose actions report what they
+        sense (Jefferson's ant) by the plain decisions alone."""
         if self._cumulative is None:
             k = int(rng.integers(len(self.drawable)))
         else:
