@@ -583,8 +583,12 @@ def _effort(solved_at: Sequence[int | None], cost: Sequence[float],
     return best, where
 
 
+RESAMPLES = 2000
+"""Bootstrap resamples of every interval on the page (an effort's, a ratio's)."""
+
+
 def bootstrap_effort(solved_at: Sequence[int | None], population: int, generations: int,
-                     resamples: int = 2000, seed: int = 0,
+                     resamples: int = RESAMPLES, seed: int = 0,
                      solved: Sequence[int | None] | None = None) -> tuple[float, float]:
     """95 % percentile bootstrap interval of Koza's effort, resampling runs; ``solved``:
     the individuals each run had processed when solved, in place of ``M (i + 1)``."""
@@ -601,7 +605,8 @@ def bootstrap_effort(solved_at: Sequence[int | None], population: int, generatio
 
 
 def bootstrap_ratio(solved: Sequence[int | None], other: Sequence[int | None],
-                    resamples: int = 2000, seed: int = 0) -> tuple[float, float, int]:
+                    resamples: int = RESAMPLES, seed: int = 0,
+                    ) -> tuple[float, float, int]:
     """95 % percentile bootstrap interval of the ratio of two efforts, ``solved``'s over
     ``other``'s (each the individuals every run had processed when solved, None: not
     solved), resampling the runs of each side on its own, as the two were run apart.
@@ -817,9 +822,9 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "population that grows at restarts (`M` given as `30 to 1920`: the first and the "
         "largest) is counted by the individuals each run actually processed, the sum of its "
         "generations' sizes, in place of `M (i + 1)`. The "
-        "interval is a 95 % percentile bootstrap over the runs (2000 resamples; ∞: some "
+        f"interval is a 95 % percentile bootstrap over the runs ({RESAMPLES} resamples; ∞: some "
         "resamples hold no solved run). Where a target compares the efforts of a task's two "
-        "representations, their ratio has its own 95 % percentile bootstrap interval (2000 "
+        f"representations, their ratio has its own 95 % percentile bootstrap interval ({RESAMPLES} "
         "resamples, the runs of each form resampled apart; a resample where neither form "
         "solved a run has no ratio and is left out), and the line says whether that interval "
         "decides the target. *Effort (episodes)* is the same minimum with the "
@@ -1124,7 +1129,7 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
                                             [solved_individuals(r) for r in other[name].runs])
         spread = ("" if math.isnan(lo) else
                   f" [{_ratio(lo)}, {_ratio(hi)}]" +
-                  (f" ({undefined} of 2000 resamples solved neither form: left out)"
+                  (f" ({undefined} of {RESAMPLES} resamples solved neither form: left out)"
                    if undefined else "") + f"; {ratio_verdict(lo, hi)}")
         out.append(f"- {name}: at most twice the effort of the {bench.other_form} section "
                    f"({_num(2 * them)}): **{_yes(ok)}** ({_span(row)} against "

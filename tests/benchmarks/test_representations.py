@@ -161,7 +161,7 @@ def test_the_issue_31_targets_read_both_representations() -> None:
     nothing = bench_search.bootstrap_ratio([None], [None])  # no resample has a ratio
     assert math.isnan(nothing[0]) and math.isnan(nothing[1]) and nothing[2] == 2000
     _, _, undefined = bench_search.bootstrap_ratio([None, 30], [None, 60])
-    assert 0 < undefined < 2000  # a quarter of the pairs of resamples solve neither
+    assert 0 < undefined < 2000  # each side solves nothing one time in four: both, one in 16
     half = {bench.name: [row("default", [None, 0])], bench.other_form: [row("default",
                                                                            [None, 1])]}
     assert f"({undefined} of 2000 resamples solved neither form: left out)" in \
