@@ -31,39 +31,125 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         groups[item.nodeid] = group
         slow[group] = slow.get(group, 0) + (item.get_closest_marker("slow") is not None)
     items.sort(key=lambda item: (groups[item.nodeid] != HEAVY, -slow[groups[item.nodeid]]))
+    _skip_without_a_namespace(items)
 
 
 # -- tests that start Ray on this machine ------------------------------------------------------
 # A Ray started without a cluster (ray.init) listens on every interface in the Ray versions we
-# support, and offers no setting that keeps it on 127.0.0.1. So a test marked
-# ``private_network`` runs in a child pytest inside a network namespace of its own (loopback
-# only; ``unshare --net``, as root): nothing it listens on can be reached from elsewhere.
-# Without such a namespace the test is skipped, never run in the open.
+# support, and offers no setting that keeps it on 127.0.0.1. So the tests marked
+# ``private_network`` run in a child pytest inside a network namespace of its own (loopback
+# only; ``unshare --net``, as root): nothing they listen on can be reached from elsewhere.
+# Without such a namespace they are skipped before their fixtures run (a fixture may start
+# Ray itself), never run in the open.
+#
+# All of them run in one child pytest, started by the first of them this process reaches: one
+# interpreter and one collection instead of one per test. The child writes each of its reports
+# as pytest-xdist ships them (pytest_report_to_serializable), and the parent logs them under
+# its own tests' names, so outcomes, skip reasons, tracebacks and durations are the child's.
+# A test the child never reported (it crashed or ran out of time) fails with the child's output.
 
 _INSIDE = "SKILLCOMPOSE_TEST_PRIVATE_NET"
+_REPORTS = "SKILLCOMPOSE_TEST_REPORTS"
+_BATCH_TIMEOUT = 900  # seconds for every namespace test together (they take about a minute)
+_batch: dict[str, list[pytest.TestReport]] | None = None  # node id -> reports, once run
+_batch_output = ""
+
+
+def _plain(nodeid: str) -> str:
+    return nodeid.removesuffix(f"@{HEAVY}")
+
+
+def _in_namespace(item: pytest.Item) -> bool:
+    """Whether this process must hand ``item`` to the namespace rather than run it."""
+    return item.get_closest_marker("private_network") is not None and not os.environ.get(_INSIDE)
+
+
+def _skip_without_a_namespace(items: list[pytest.Item]) -> None:
+    if not any(_in_namespace(item) for item in items):
+        return
+    from skillcompose.evolve.ray_local import private_network
+
+    if not private_network():
+        skip = pytest.mark.skip(reason="starts Ray, which listens on every interface: needs a "
+                                       "private network namespace (unshare --net, as root)")
+        for item in items:
+            if _in_namespace(item):
+                item.add_marker(skip)
+
+
+def _run_batch(session: pytest.Session) -> dict[str, list[pytest.TestReport]]:
+    import json
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from skillcompose.evolve.ray_local import PRIVATE_NET
+
+    global _batch_output
+    config = session.config
+    nodeids = [_plain(item.nodeid) for item in session.items if _in_namespace(item)]
+    with tempfile.TemporaryDirectory(prefix="skillcompose-netns-") as tmp:
+        out = Path(tmp) / "reports.jsonl"
+        try:
+            done = subprocess.run(
+                [*PRIVATE_NET, sys.executable, "-m", "pytest", "-q", "-rs", "-p",
+                 "no:cacheprovider", "-n", "0", *nodeids],
+                cwd=str(config.rootpath), env={**os.environ, _INSIDE: "1", _REPORTS: str(out)},
+                capture_output=True, text=True, timeout=_BATCH_TIMEOUT, check=False)
+            _batch_output = (done.stdout + done.stderr)[-4000:]
+        except subprocess.TimeoutExpired as late:
+            text = (late.stdout or b"") + (late.stderr or b"")
+            tail = text.decode(errors="replace") if isinstance(text, bytes) else text
+            _batch_output = (f"the namespace's pytest ran past {_BATCH_TIMEOUT} s and was "
+                             f"killed\n" + tail[-4000:])
+        lines = out.read_text().splitlines() if out.exists() else []
+    reports: dict[str, list[pytest.TestReport]] = {}
+    for line in lines:
+        report = config.hook.pytest_report_from_serializable(config=config, data=json.loads(line))
+        if isinstance(report.longrepr, list):  # a skip's (path, line, reason), a list in JSON
+            report.longrepr = tuple(report.longrepr)
+        reports.setdefault(_plain(report.nodeid), []).append(report)
+    return reports
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Inside the namespace's child pytest: each report, for the parent (see above)."""
+    path = os.environ.get(_REPORTS)
+    if path and os.environ.get(_INSIDE):
+        import json
+
+        data = _config[0].hook.pytest_report_to_serializable(config=_config[0], report=report)
+        with open(path, "a", encoding="utf-8") as out:
+            out.write(json.dumps(data) + "\n")
+
+
+_config: list[pytest.Config] = []  # this process's, for the hook above
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    _config[:] = [config]
 
 
 @pytest.hookimpl(tryfirst=True)
-def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
-    if pyfuncitem.get_closest_marker("private_network") is None or os.environ.get(_INSIDE):
-        return None  # an ordinary test, or already inside the namespace: run it here
-    import subprocess
-    import sys
-
-    from skillcompose.evolve.ray_local import PRIVATE_NET, private_network
-
-    if not private_network():
-        pytest.skip("starts Ray, which listens on every interface: needs a private network "
-                    "namespace (unshare --net, as root)")
-    root = str(pyfuncitem.config.rootpath)
-    done = subprocess.run(
-        [*PRIVATE_NET, sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider",
-         "-n", "0", pyfuncitem.nodeid.removesuffix(f"@{HEAVY}")],
-        cwd=root, env={**os.environ, _INSIDE: "1"}, capture_output=True, text=True,
-        timeout=900, check=False)
-    skipped = [line for line in done.stdout.splitlines() if line.startswith("SKIPPED")]
-    if done.returncode == 0 and " passed" not in done.stdout and skipped:
-        pytest.skip(f"in the private network namespace: {skipped[-1]}")
-    tail = (done.stdout + done.stderr)[-4000:]
-    assert done.returncode == 0 and " passed" in done.stdout, tail
-    return True  # the test ran (and passed) in the namespace
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> bool | None:
+    if not _in_namespace(item) or item.get_closest_marker("skip") is not None:
+        return None  # an ordinary test, inside the namespace already, or skipped without one
+    global _batch
+    if _batch is None:
+        _batch = _run_batch(item.session)
+    ihook = item.ihook
+    ihook.pytest_runtest_logstart(nodeid=item.nodeid, location=item.location)
+    reports = _batch.get(_plain(item.nodeid), [])
+    if not any(report.when == "teardown" for report in reports):  # never finished there
+        reports = [pytest.TestReport(
+            item.nodeid, item.location, dict.fromkeys(item.keywords, 1), "failed",
+            f"no report from the private network namespace's pytest for this test; its "
+            f"output:\n{_batch_output}", "setup", [], 0.0),
+            pytest.TestReport(item.nodeid, item.location, dict.fromkeys(item.keywords, 1),
+                              "passed", None, "teardown", [], 0.0)]
+    for report in reports:
+        report.nodeid, report.location = item.nodeid, item.location
+        ihook.pytest_runtest_logreport(report=report)
+    ihook.pytest_runtest_logfinish(nodeid=item.nodeid, location=item.location)
+    return True
