@@ -605,35 +605,31 @@ def test_leaking_workers_are_replaced_and_results_do_not_change() -> None:
 # -- item 18 (and 14 on Ray): a dead or stuck actor costs only its own job ---------------------
 @pytest.mark.slow
 @pytest.mark.private_network  # starts Ray, which listens: see tests/conftest.py
-def test_ray_reruns_a_dead_actors_chunk_job_by_job() -> None:
-    ray = pytest.importorskip("ray")
+def test_ray_reruns_a_dead_actors_chunk_job_by_job(local_ray: Any) -> None:
     from skillcompose.evolve.ray_backend import RayEvaluator
 
     crashy = load_task(FAULTY, fault="crash")
     hang = load_task(FAULTY, fault="hang")
+    # on the shared Ray of tests/evolve/conftest.py: each evaluator leaves it running
+    ev = RayEvaluator(crashy, SkillSet.from_task(crashy), workers=1, chunks_per_worker=1)
     try:
-        ev = RayEvaluator(crashy, SkillSet.from_task(crashy), workers=1, chunks_per_worker=1)
-        try:
-            jobs = _jobs(crashy, ["FindBlock", "Carry", "Fault", "FindBlock"])
-            good = SerialEvaluator(crashy, SkillSet.from_task(crashy)).evaluate(
-                [jobs[0], jobs[1], jobs[0], jobs[3]])
-            out = ev.evaluate(jobs)
-            assert out[2] == crashy.worst and [out[0], out[1], out[3]] == \
-                [good[0], good[1], good[3]]
-            assert ev.lost == 1 and ev.faults.lost == 1
-        finally:
-            ev.close()
-        ev = RayEvaluator(hang, SkillSet.from_task(hang), workers=1, chunks_per_worker=1,
-                          limits=EvalLimits(time_limit=0.3))
-        try:
-            jobs = _jobs(hang, ["FindBlock", "Fault", "Carry"])
-            out = ev.evaluate(jobs)
-            assert out[1] == hang.worst and ev.faults.timeouts == 1 and out[0] != hang.worst
-        finally:
-            ev.close()
+        jobs = _jobs(crashy, ["FindBlock", "Carry", "Fault", "FindBlock"])
+        good = SerialEvaluator(crashy, SkillSet.from_task(crashy)).evaluate(
+            [jobs[0], jobs[1], jobs[0], jobs[3]])
+        out = ev.evaluate(jobs)
+        assert out[2] == crashy.worst and [out[0], out[1], out[3]] == \
+            [good[0], good[1], good[3]]
+        assert ev.lost == 1 and ev.faults.lost == 1
     finally:
-        if ray.is_initialized():
-            ray.shutdown()
+        ev.close()
+    ev = RayEvaluator(hang, SkillSet.from_task(hang), workers=1, chunks_per_worker=1,
+                      limits=EvalLimits(time_limit=0.3))
+    try:
+        jobs = _jobs(hang, ["FindBlock", "Fault", "Carry"])
+        out = ev.evaluate(jobs)
+        assert out[1] == hang.worst and ev.faults.timeouts == 1 and out[0] != hang.worst
+    finally:
+        ev.close()
 
 
 def test_faults_add_up() -> None:
@@ -659,16 +655,11 @@ def test_simplification_and_the_fresh_check_survive_sys_exit() -> None:
 
 @pytest.mark.slow
 @pytest.mark.private_network  # starts Ray, which listens: see tests/conftest.py
-def test_faults_on_ray_equal_the_serial_run() -> None:
-    ray = pytest.importorskip("ray")
+def test_faults_on_ray_equal_the_serial_run(local_ray: Any) -> None:
     task = load_task(FAULTY, fault="raise", p_fault=0.5)
-    try:
-        serial = evolve(task, SMALL, seed=3, simplify_result=False, check_trials=0)
-        on_ray = evolve(task, SMALL, seed=3, backend="ray", workers=2, simplify_result=False,
-                        check_trials=0)
-    finally:
-        if ray.is_initialized():
-            ray.shutdown()
+    serial = evolve(task, SMALL, seed=3, simplify_result=False, check_trials=0)
+    on_ray = evolve(task, SMALL, seed=3, backend="ray", workers=2, simplify_result=False,
+                    check_trials=0)
     assert sum(r.faults["raised"] for r in serial.history) > 0
     assert _history(serial) == _history(on_ray)
     assert serial.faults.first_error == on_ray.faults.first_error

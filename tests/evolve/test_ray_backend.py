@@ -14,7 +14,11 @@ pytestmark = [pytest.mark.slow, pytest.mark.private_network]  # Ray listens: see
 
 
 def test_ray_backend_equals_serial() -> None:
+    """evolve starts a local Ray of its own (none running: the shared one of
+    tests/evolve/conftest.py is stopped) and gives the serial run."""
     ray = pytest.importorskip("ray")
+    if ray.is_initialized():
+        ray.shutdown()
     task = load_task("examples.toy_task", p_fail=0.2)
     cfg = EvolutionConfig(population=60, trials=3, generations=6, initial_nodes=10,
                           common_random_numbers=True, elitism=1)
@@ -48,8 +52,7 @@ class _Counted(NamedTuple):
 
 
 @pytest.fixture
-def counted(monkeypatch: pytest.MonkeyPatch) -> Iterator[_Counted]:
-    ray = pytest.importorskip("ray")
+def counted(monkeypatch: pytest.MonkeyPatch, local_ray: Any) -> Iterator[_Counted]:
     import numpy as np
 
     import skillcompose.evolve.ray_backend as ev_mod
@@ -72,8 +75,7 @@ def counted(monkeypatch: pytest.MonkeyPatch) -> Iterator[_Counted]:
         yield _Counted(evaluator, jobs, SerialEvaluator(task, skills).evaluate(jobs), sizes)
     finally:
         evaluator.close()
-        if ray.is_initialized():
-            ray.shutdown()
+    assert local_ray.is_initialized()  # the evaluator left the Ray it was given running
 
 
 def test_a_generation_is_cut_in_batches_of_one_chunk_per_actor(
