@@ -317,7 +317,7 @@ def test_confirmation_rejects_lucky_solutions() -> None:
     """With one noisy trial per evaluation the first 'solution' is often luck; with
     confirm_trials the run stops only on an FSA that also solves fresh worlds."""
     task = load_task("examples.pour_water", p_fail=0.3)
-    base = EvolutionConfig(population=300, initial_nodes=12, generations=400, trials=1,
+    base = EvolutionConfig(population=200, initial_nodes=12, generations=400, trials=1,
                            tournament=3, param_sigma=0.1, elitism=2)
     lucky = evolve(task, base, seed=1, simplify_result=False)
     confirmed = evolve(task, base.replace(confirm_trials=25), seed=1, simplify_result=False)
