@@ -750,6 +750,7 @@ def test_a_check_stuck_where_no_signal_reaches_is_killed_after_the_limit() -> No
         checks.close()
 
 
+@pytest.mark.slow  # waits out the checks' time limits: about 7 s
 def test_a_run_whose_checks_get_stuck_finishes_and_says_why(tmp_path: Path) -> None:
     """The final fresh check's episodes block SIGALRM and wait: the run used to wait for
     ever. Now the checks' process is killed a little after the limit, the check counts as

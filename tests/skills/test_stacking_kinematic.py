@@ -92,6 +92,7 @@ def test_reference_fsa_stacks_on_the_pr2() -> None:
     assert [f for _, f in results] == [0.0]
 
 
+@pytest.mark.slow  # draws 8 frames of the PR2, a strip and a GIF: about 6 s
 def test_replay_writes_a_frame_per_step(tmp_path: Path) -> None:
     from skillcompose.skills.replay import main
 
