@@ -115,20 +115,22 @@ def _run_batch(session: pytest.Session) -> dict[str, list[pytest.TestReport]]:
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     """Inside the namespace's child pytest: each report, for the parent (see above)."""
-    path = os.environ.get(_REPORTS)
-    if path and os.environ.get(_INSIDE):
+    if _reports_to:
         import json
 
-        data = _config[0].hook.pytest_report_to_serializable(config=_config[0], report=report)
+        config, path = _reports_to[0]
+        data = config.hook.pytest_report_to_serializable(config=config, report=report)
         with open(path, "a", encoding="utf-8") as out:
             out.write(json.dumps(data) + "\n")
 
 
-_config: list[pytest.Config] = []  # this process's, for the hook above
+_reports_to: list[tuple[pytest.Config, str]] = []  # the child's config and its reports' file
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    _config[:] = [config]
+    path = os.environ.pop(_REPORTS, None)  # taken, so that no pytest a test starts writes there
+    if path and os.environ.get(_INSIDE):
+        _reports_to[:] = [(config, path)]
 
 
 @pytest.hookimpl(tryfirst=True)
