@@ -65,4 +65,3 @@ def local_ray(_ray_stopped_at_the_end: None) -> Any:
         ray.init(log_to_driver=False, include_dashboard=False,
                  runtime_env={"py_modules": modules})
     return ray
-
