@@ -605,8 +605,7 @@ def bootstrap_effort(solved_at: Sequence[int | None], population: int, generatio
 
 
 def bootstrap_ratio(solved: Sequence[int | None], other: Sequence[int | None],
-                    resamples: int = RESAMPLES, seed: int = 0,
-                    ) -> tuple[float, float, int]:
+                    resamples: int = RESAMPLES, seed: int = 0) -> tuple[float, float, int]:
     """95 % percentile bootstrap interval of the ratio of two efforts, ``solved``'s over
     ``other``'s (each the individuals every run had processed when solved, None: not
     solved), resampling the runs of each side on its own, as the two were run apart.

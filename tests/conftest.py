@@ -144,12 +144,14 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     ihook.pytest_runtest_logstart(nodeid=item.nodeid, location=item.location)
     reports = _batch.get(_plain(item.nodeid), [])
     if not any(report.when == "teardown" for report in reports):  # never finished there
-        reports = [pytest.TestReport(
-            item.nodeid, item.location, dict.fromkeys(item.keywords, 1), "failed",
-            f"no report from the private network namespace's pytest for this test; its "
-            f"output:\n{_batch_output}", "setup", [], 0.0),
-            pytest.TestReport(item.nodeid, item.location, dict.fromkeys(item.keywords, 1),
-                              "passed", None, "teardown", [], 0.0)]
+        keywords = dict.fromkeys(item.keywords, 1)
+        missing = (f"no report from the private network namespace's pytest for this test; "
+                   f"its output:\n{_batch_output}")
+        reports = [
+            pytest.TestReport(item.nodeid, item.location, keywords, "failed", missing, "setup",
+                              [], 0.0),
+            pytest.TestReport(item.nodeid, item.location, keywords, "passed", None, "teardown",
+                              [], 0.0)]
     for report in reports:
         report.nodeid, report.location = item.nodeid, item.location
         ihook.pytest_runtest_logreport(report=report)

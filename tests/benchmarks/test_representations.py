@@ -158,13 +158,14 @@ def test_the_issue_31_targets_read_both_representations() -> None:
                              "runs show the target missed)")
     lo, hi, undefined = bench_search.bootstrap_ratio([330, 630, None, None], [180] * 4)
     assert (lo, hi, undefined) == (3.5, math.inf, 0)
+    resamples = bench_search.RESAMPLES
     nothing = bench_search.bootstrap_ratio([None], [None])  # no resample has a ratio
-    assert math.isnan(nothing[0]) and math.isnan(nothing[1]) and nothing[2] == 2000
+    assert math.isnan(nothing[0]) and math.isnan(nothing[1]) and nothing[2] == resamples
     _, _, undefined = bench_search.bootstrap_ratio([None, 30], [None, 60])
-    assert 0 < undefined < 2000  # each side solves nothing one time in four: both, one in 16
+    assert 0 < undefined < resamples  # each side solves nothing one time in four: both, one in 16
     half = {bench.name: [row("default", [None, 0])], bench.other_form: [row("default",
                                                                            [None, 1])]}
-    assert f"({undefined} of 2000 resamples solved neither form: left out)" in \
+    assert f"({undefined} of {resamples} resamples solved neither form: left out)" in \
         bench_search.form_targets(bench, half)[-1]
     assert bench_search.ratio_verdict(0.5, 1.9).endswith("show the target met")
     assert bench_search.ratio_verdict(0.5, 2.1).endswith("do not decide the target")
