@@ -32,7 +32,8 @@ some resamples hold no solved run; the ratio of two efforts (a task in its two
 representations) has its own interval (:func:`bootstrap_ratio`). Beside it, the effort in
 episodes counts what was actually run (a cache, repeated trials and confirmations change
 it): the same minimum with the mean episodes the runs had spent by generation ``i`` (by
-``x`` individuals) in place of ``M (i + 1)``.
+``x`` individuals) in place of ``M (i + 1)``; on a noisy task the default's against
+``robust``'s has an interval as well (:func:`ratio_interval`).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -73,6 +74,7 @@ from skillcompose.evolve.config import NOISY_DEFAULT  # noqa: E402
 from skillcompose.task import Task, load_task  # noqa: E402
 
 Z = 0.99  # Koza's probability of success
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -544,7 +546,7 @@ def effort_in_individuals(solved: Sequence[int | None], z: float = Z) -> float:
     return _effort_at(solved, lambda x: float(x), z)
 
 
-def episode_effort(runs: Sequence[RunResult], generations: int, z: float = Z) -> float:
+def episode_effort(runs: Sequence[RunResult], z: float = Z) -> float:
     """The same minimum with the mean episodes the runs had spent by each point (each
     number of individuals processed; generation ``i`` for a fixed population)."""
     def spent(x: int) -> float:
@@ -608,7 +610,16 @@ def bootstrap_ratio(solved: Sequence[int | None], other: Sequence[int | None],
                     resamples: int = RESAMPLES, seed: int = 0) -> tuple[float, float, int]:
     """95 % percentile bootstrap interval of the ratio of two efforts, ``solved``'s over
     ``other``'s (each the individuals every run had processed when solved, None: not
-    solved), resampling the runs of each side on its own, as the two were run apart.
+    solved): :func:`ratio_interval` of :func:`effort_in_individuals`."""
+    return ratio_interval(solved, other, effort_in_individuals, resamples, seed)
+
+
+def ratio_interval(solved: Sequence[T], other: Sequence[T],
+                   effort: Callable[[list[T]], float], resamples: int = RESAMPLES,
+                   seed: int = 0) -> tuple[float, float, int]:
+    """95 % percentile bootstrap interval of ``effort(solved) / effort(other)``, resampling
+    the runs of each side on its own, as the two were run apart (a run: whatever ``effort``
+    takes a list of).
 
     A resample in which neither side solved a run has no ratio (infinity over infinity): it
     is left out, and the third value counts such resamples; one side unsolved alone gives 0
@@ -618,8 +629,8 @@ def bootstrap_ratio(solved: Sequence[int | None], other: Sequence[int | None],
     ratios = []
     undefined = 0
     for _ in range(resamples):
-        ea = effort_in_individuals([a[int(k)] for k in rng.integers(len(a), size=len(a))])
-        eb = effort_in_individuals([b[int(k)] for k in rng.integers(len(b), size=len(b))])
+        ea = effort([a[int(k)] for k in rng.integers(len(a), size=len(a))])
+        eb = effort([b[int(k)] for k in rng.integers(len(b), size=len(b))])
         if math.isinf(ea) and math.isinf(eb):
             undefined += 1
         else:
@@ -681,7 +692,7 @@ def summarise(bench: Bench, config: str, runs: list[RunResult], generations: int
         not any(r.sizes for r in runs) else None
     return Row(config, runs, effort, where,
                bootstrap_effort(solved_at, population, generations, solved=solved),
-               episode_effort(runs, generations))
+               episode_effort(runs))
 
 
 def population_text(runs: Sequence[RunResult]) -> str:
@@ -828,8 +839,11 @@ def report(results: dict[str, list[Row]], benches: Sequence[Bench], args: argpar
         "solved a run has no ratio and is left out), and the line says whether that interval "
         "decides the target. *Effort (episodes)* is the same minimum with the "
         "episodes the runs actually spent (cache hits cost none; repeated trials and "
-        "confirmations count). *Best at N episodes*: the best fitness a run had reached "
-        "within that many episodes, median over the seeds.",
+        "confirmations count); where a noisy task's default is set against `robust`, the "
+        "ratio of their efforts in episodes has an interval of the same kind, and the line "
+        "says whether it decides that the default spends no more. *Best at N episodes*: "
+        "the best fitness a run had reached within that many episodes, median over the "
+        "seeds.",
         "",
         "Settings: `paper` and `robust` are the head's presets; `islands` is the island "
         f"preset ({_settings(PRESETS['islands'])}); `islands + cache` adds `--cache` "
@@ -1140,10 +1154,16 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
         solved = [sum(r.solved for r in row.runs) for row in (new, old)]
         ok = solved[0] >= solved[1] and new.episodes_effort <= old.episodes_effort and \
             rates[0] >= rates[1] - 0.01
+        lo, hi, _ = ratio_interval(new.runs, old.runs, episode_effort)
+        ratio = new.episodes_effort / old.episodes_effort \
+            if math.isfinite(old.episodes_effort) and old.episodes_effort > 0 else math.inf
+        spread = "" if math.isnan(lo) else \
+            f" [{_ratio(lo)}, {_ratio(hi)}]; {ratio_verdict(lo, hi, 1.0)}"
         out.append(f"- default no worse than the head's `robust`: **{_yes(ok)}** (solved "
                    f"{solved[0]} against {solved[1]}; effort in episodes "
-                   f"{_num(new.episodes_effort)} against {_num(old.episodes_effort)}; median "
-                   f"fresh rate {rates[0]:.3f} against {rates[1]:.3f}, 0.01 allowed)")
+                   f"{_num(new.episodes_effort)} against {_num(old.episodes_effort)}, ratio "
+                   f"{_ratio(ratio)}{spread}; median fresh rate {rates[0]:.3f} against "
+                   f"{rates[1]:.3f}, 0.01 allowed)")
     return out
 
 

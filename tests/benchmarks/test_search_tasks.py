@@ -283,10 +283,25 @@ def test_a_noisy_section_where_solved_means_it_holds_compares_the_default_with_r
         return next(x for x in bench_search.form_targets(bench, {bench.name: rows})
                     if "no worse than" in x)
 
-    assert "**yes** (solved 4 against 3" in line(
-        runs(bench_search.DEFAULT, [60, 60, 60, 60], 150_000, 0.995))
-    assert "**no** (solved 4 against 3" in line(
-        runs(bench_search.DEFAULT, [400, 400, 400, 400], 3_000_000, 0.995))
+    cheap = line(runs(bench_search.DEFAULT, [60, 60, 60, 60], 150_000, 0.995))
+    assert "**yes** (solved 4 against 3" in cheap
+    # the effort in episodes has a ratio with its bootstrap interval: robust's resamples cost
+    # 700,000 episodes (all four solved) up to infinity (none), so the ratio's upper end is
+    # 150,000 / 700,000
+    assert "ratio 0.07 [0.05, 0.21]; the interval lies at or below 1: these runs show the " \
+        "target met;" in cheap
+    dear = line(runs(bench_search.DEFAULT, [400, 400, 400, 400], 3_000_000, 0.995))
+    assert "**no** (solved 4 against 3" in dear
+    assert "ratio 1.43 [1.01, 4.29]; the interval lies above 1: these runs show the target " \
+        "missed;" in dear
+    # a robust that solved half its runs cheaply and the others never: the point estimate
+    # says no (400,000 against 350,000 episodes), the interval holds 1 (undecided)
+    spread = [bench_search.summarise(bench, c, r, 500) for c, r in (
+        (bench_search.DEFAULT, runs(bench_search.DEFAULT, [100, 100, 100, 100], 400_000, 0.99)),
+        ("robust", [*runs("robust", [50, 50], 100_000, 0.99),
+                    *runs("robust", [None, None], 900_000, 0.99)]))]
+    assert "do not decide the target" in next(
+        x for x in bench_search.form_targets(bench, {bench.name: spread}) if "no worse" in x)
 
 
 def test_more_seeds_from_the_same_first_seed_replace_the_shorter_section() -> None:
