@@ -25,6 +25,7 @@ from .config import (
 )
 from .config import EVALUATION_BACKENDS as BACKENDS
 from .errors import EvolutionError
+from .rundir import MAX_DRAWN_STATES
 from .settings import FLAGGED, Kind, Setting
 
 if TYPE_CHECKING:
@@ -403,6 +404,11 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
         print("files written:")
         for f in result.files:
             print(f"  {f}")
+        if result.out_dir is not None and len(result.best_fsa.states) > MAX_DRAWN_STATES:
+            best = shlex.quote(str(result.out_dir / "best.yaml"))
+            print(f"  (no best.png: {len(result.best_fsa.states)} states are more than "
+                  f"{MAX_DRAWN_STATES} to draw legibly; best.dot holds the graph, or: "
+                  f"skillcompose show {best} -o best.svg)")
         print(f"run it: {result.run_command}")
     return 1 if result.nothing_succeeded else 0
 

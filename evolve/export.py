@@ -286,8 +286,9 @@ def _write_final(run: RunState, fitness: list[float], evolved: FSA, best: FSA,
     rundir.save_checkpoint({**run.checkpoint(fitness),
                             "best_yaml": dumps_fsa(best, task.registry, header=header(run)),
                             "fresh": result["fresh"], "solved_by": result["solved_by"]})
-    return [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
-            rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
+    written = [rundir.best_yaml, rundir.best_evolved_yaml, rundir.best_dot, rundir.best_png,
+               rundir.history, rundir.fitness_png, rundir.checkpoint, rundir.run_json]
+    return [p for p in written if p.exists()]  # best.png: none for a large FSA (plots)
 
 
 def unchanged(run: RunState, checkpoint: Mapping[str, Any], rundir: RunDir,
