@@ -944,7 +944,10 @@ def merge_page(old: str, new: str, measured: Sequence[str]) -> str:
                        if line.startswith(("Command:", "Machine:")))
     kept: dict[str, str] = {}
     for name in old_sections:
-        if name in new_sections or any(supersedes(n, name) for n in new_sections):
+        if name in new_sections or any(
+                supersedes(n, name) and
+                _settings_of(old_sections[name]) <= _settings_of(new_sections[n])
+                for n in new_sections):
             continue
         section = old_sections[name]
         if RUN_MARK not in section:
@@ -958,6 +961,19 @@ def merge_page(old: str, new: str, measured: Sequence[str]) -> str:
     body = [new_sections.get(name) or kept[name]
             for name in _ordered([*new_sections, *kept])]
     return new_head + "\n" + note + "\n" + "\n".join(body)
+
+
+def _settings_of(section: str) -> set[str]:
+    """The settings a section's table has rows of (its first column)."""
+    lines = section.splitlines()
+    heads = [k for k, line in enumerate(lines) if line.startswith("| settings |")]
+    rows: set[str] = set()
+    for k in heads:
+        for line in lines[k + 2:]:
+            if not line.startswith("|"):
+                break
+            rows.add(line.split("|")[1].strip())
+    return rows
 
 
 def _seed_range(name: str) -> tuple[str, int, int] | None:
@@ -974,7 +990,9 @@ def supersedes(new: str, old: str) -> bool:
     """Whether the section ``new`` measured every seed of the section ``old`` and more, from
     the same first seed, of the same benchmark (``..., seeds 1000–1019`` supersedes
     ``..., seeds 1000–1009``): the runs are deterministic, so the old section's runs are
-    among the new one's, and keeping both would show one measurement twice."""
+    among the new one's, and keeping both would show one measurement twice. :func:`merge_page`
+    drops the old section only when the new one has every setting it had: a longer run of
+    fewer settings leaves the others' rows where they were."""
     a, b = _seed_range(new), _seed_range(old)
     return a is not None and b is not None and a[:2] == b[:2] and a[2] > b[2]
 

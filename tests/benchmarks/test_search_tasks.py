@@ -323,6 +323,27 @@ def test_more_seeds_from_the_same_first_seed_replace_the_shorter_section() -> No
     assert "ten seeds" not in text and "twenty seeds" in text
 
 
+def test_more_seeds_of_fewer_settings_keep_the_shorter_section() -> None:
+    """A longer run of fewer settings does not hold the shorter section's other rows: that
+    section stays beside it; with every setting of the old one, the longer replaces it."""
+    short = "dock (noisy), seeds 1000–1009"
+    long = "dock (noisy), seeds 1000–1029"
+
+    def table(*settings: str) -> str:
+        return "\n".join(["| settings | M | solved |", "|---|---|---|",
+                          *(f"| {name} | 600 | 10/10 |" for name in settings)])
+
+    old = _page("x", "old", [(short, "then", table("default", "robust", "noisy"))])
+    fewer = _page("y", "new", [(long, "now", table("default", "robust"))])
+    text = bench_search.merge_page(old, fewer, [long])
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [
+        f"## {short}", f"## {long}"]
+    assert "| noisy | 600 |" in text
+    every = _page("y", "new", [(long, "now", table("noisy", "robust", "default", "push"))])
+    text = bench_search.merge_page(old, every, [long])
+    assert [line for line in text.splitlines() if line.startswith("## ")] == [f"## {long}"]
+
+
 def test_only_with_an_equals_sign_takes_one_benchmark_whose_name_others_contain() -> None:
     names = [b.name for b in bench_search.BENCHES]
     assert sum(bench_search.only_matches("pour water (noisy)", n) for n in names) == 2
