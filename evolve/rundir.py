@@ -71,7 +71,7 @@ MAX_RUN_JSON_BYTES = 16 << 20
 MAX_DRAWN_STATES = 100
 """The most states of an FSA the run draws in ``best.png``: a picture of more is too
 large to read and slow to draw (matplotlib, on a busy two-core machine: 2.3 s for 92 states,
-4.9 s for 170, 10.6 s for 318, at every checkpoint); ``best.dot`` and ``skillcompose draw``
+4.9 s for 170, 10.6 s for 318, at every checkpoint); ``best.dot`` and ``skillcompose show``
 still draw any FSA."""
 
 CHECKPOINT_FORMAT = "skillcompose evolve checkpoint"
