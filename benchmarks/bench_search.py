@@ -631,14 +631,23 @@ def ratio_interval(solved: Sequence[T], other: Sequence[T],
     for _ in range(resamples):
         ea = effort([a[int(k)] for k in rng.integers(len(a), size=len(a))])
         eb = effort([b[int(k)] for k in rng.integers(len(b), size=len(b))])
-        if math.isinf(ea) and math.isinf(eb):
+        ratio = effort_ratio(ea, eb)
+        if math.isnan(ratio):
             undefined += 1
         else:
-            ratios.append(math.inf if math.isinf(ea) else 0.0 if math.isinf(eb) else ea / eb)
+            ratios.append(ratio)
     if not ratios:
         return math.nan, math.nan, undefined
     lo, hi = np.quantile(np.array(ratios), [0.025, 0.975], method="inverted_cdf")
     return float(lo), float(hi), undefined
+
+
+def effort_ratio(a: float, b: float) -> float:
+    """``a / b`` for two efforts: infinity when only ``a`` is (its runs never solved), 0 when
+    only ``b`` is, undefined (NaN) when both are."""
+    if math.isinf(a):
+        return math.nan if math.isinf(b) else math.inf
+    return 0.0 if math.isinf(b) else a / b
 
 
 def ratio_verdict(lo: float, hi: float, bound: float = 2.0) -> str:
@@ -1154,7 +1163,7 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
                        "section: **not measurable** (neither form was solved within the "
                        "budget)")
             continue
-        ratio = row.effort / them if math.isfinite(them) and them > 0 else math.inf
+        ratio = effort_ratio(row.effort, them)
         ok = row.effort <= 2 * them
         lo, hi, undefined = bootstrap_ratio([solved_individuals(r) for r in row.runs],
                                             [solved_individuals(r) for r in other[name].runs])
@@ -1173,8 +1182,7 @@ def form_targets(bench: Bench, results: dict[str, list[Row]]) -> list[str]:
         ok = solved[0] >= solved[1] and new.episodes_effort <= old.episodes_effort and \
             rates[0] >= rates[1] - 0.01
         lo, hi, _ = ratio_interval(new.runs, old.runs, episode_effort)
-        ratio = new.episodes_effort / old.episodes_effort \
-            if math.isfinite(old.episodes_effort) and old.episodes_effort > 0 else math.inf
+        ratio = effort_ratio(new.episodes_effort, old.episodes_effort)
         spread = "" if math.isnan(lo) else \
             f" [{_ratio(lo)}, {_ratio(hi)}]; {ratio_verdict(lo, hi, 1.0)}"
         out.append(f"- default no worse than the head's `robust`: **{_yes(ok)}** (solved "

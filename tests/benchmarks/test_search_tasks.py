@@ -302,6 +302,15 @@ def test_a_noisy_section_where_solved_means_it_holds_compares_the_default_with_r
                     *runs("robust", [None, None], 900_000, 0.99)]))]
     assert "do not decide the target" in next(
         x for x in bench_search.form_targets(bench, {bench.name: spread}) if "no worse" in x)
+    # a robust that never solved: the ratio is 0, not infinite
+    never = [bench_search.summarise(bench, c, r, 500) for c, r in (
+        (bench_search.DEFAULT, runs(bench_search.DEFAULT, [100, 100], 400_000, 0.99)),
+        ("robust", runs("robust", [None, None], 900_000, 0.5)))]
+    assert "against ∞, ratio 0.00 [0.00, 0.00]; the interval lies at or below 1" in next(
+        x for x in bench_search.form_targets(bench, {bench.name: never}) if "no worse" in x)
+    assert math.isnan(bench_search.effort_ratio(math.inf, math.inf))
+    assert bench_search.effort_ratio(math.inf, 5.0) == math.inf
+    assert bench_search.effort_ratio(10.0, 5.0) == 2.0
 
 
 def test_more_seeds_from_the_same_first_seed_replace_the_shorter_section() -> None:
