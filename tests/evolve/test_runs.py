@@ -16,9 +16,10 @@ from pathlib import Path
 
 import pytest
 
-from skillcompose import load_fsa, save_fsa
+from skillcompose import FSA, State, load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import CheckpointError, EvolutionConfig, EvolutionResult, RunDir, evolve
+from skillcompose.evolve.rundir import MAX_DRAWN_STATES
 from skillcompose.task import Task, load_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -592,3 +593,39 @@ def test_an_out_dir_that_cannot_be_made_is_one_error_before_any_work(tmp_path: P
                                               r"directory\); give a folder you can write in"):
         evolve(_task(), CFG, seed=1, out_dir=a_file / "run", on_generation=generations.append)
     assert generations == []  # refused before a generation was evaluated
+
+
+def test_the_command_line_says_why_a_large_best_has_no_picture(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The files the command lists leave best.png out, and a line says why and how to draw
+    the FSA."""
+    out = tmp_path / "run"
+    assert skillcompose_main([
+        "evolve", "examples.toy_task", "--preset", "paper", "--initial-nodes", "1500",
+        "--population", "2", "--generations", "1", "--seed", "1", "--no-simplify",
+        "--check-trials", "0", "--quiet", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "best.png" not in text.split("files written:")[1].split("(no best.png")[0]
+    assert f"states are more than {MAX_DRAWN_STATES} to draw legibly; best.dot holds the " \
+        f"graph, or: skillcompose show {out / 'best.yaml'} -o best.svg)" in text
+    assert not (out / "best.png").exists()
+
+
+def test_a_picture_of_an_earlier_best_goes_when_the_best_is_too_large_to_draw(
+        tmp_path: Path) -> None:
+    """``best.png`` never shows another FSA than ``best.yaml``: drawn for a small best,
+    removed when a later best has more than MAX_DRAWN_STATES states."""
+    def chain(n: int) -> FSA:
+        states = {f"s{i}": State("Wait", transitions={"success": f"s{i + 1}" if i + 1 < n
+                                                      else "success"})
+                  for i in range(n)}
+        return FSA(name="chain", start="s0", states=states, terminals=("success",))
+
+    rundir = RunDir(tmp_path)
+    rundir.plots([], chain(3))
+    assert rundir.best_png.stat().st_size > 0
+    rundir.plots([], chain(MAX_DRAWN_STATES + 1))
+    assert not rundir.best_png.exists()
+    rundir.plots([], chain(MAX_DRAWN_STATES + 1))  # nothing to remove: no error
+    rundir.plots([], chain(4))
+    assert rundir.best_png.exists()
