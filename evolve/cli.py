@@ -25,7 +25,6 @@ from .config import (
 )
 from .config import EVALUATION_BACKENDS as BACKENDS
 from .errors import EvolutionError
-from .rundir import MAX_DRAWN_STATES
 from .settings import FLAGGED, Kind, Setting
 
 if TYPE_CHECKING:
@@ -404,6 +403,8 @@ def _summary(args: argparse.Namespace, result: EvolutionResult, cfg: EvolutionCo
         print("files written:")
         for f in result.files:
             print(f"  {f}")
+        from .rundir import MAX_DRAWN_STATES  # here: `--help` loads no heavy package
+
         if result.out_dir is not None and len(result.best_fsa.states) > MAX_DRAWN_STATES:
             best = shlex.quote(str(result.out_dir / "best.yaml"))
             print(f"  (no best.png: {len(result.best_fsa.states)} states are more than "
