@@ -39,6 +39,7 @@ it): the same minimum with the mean episodes the runs had spent by generation ``
 from __future__ import annotations
 
 import argparse
+import bisect
 import math
 import os
 import platform
@@ -51,6 +52,8 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
+from functools import cached_property
+from itertools import accumulate
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -428,6 +431,16 @@ class RunResult:
     sizes: list[int] = field(default_factory=list)  # each generation's individuals (empty:
     # ``population`` every generation); a population that grows at restarts differs
 
+    @cached_property
+    def spending(self) -> tuple[list[int], list[int]]:
+        """The individuals processed (:func:`individuals`) and the episodes spent at each
+        point of ``curve``, both never falling: computed once, as an effort's bootstrap asks
+        for them thousands of times."""
+        total = list(accumulate(self.sizes))
+        done = [total[min(g, len(total) - 1)] if total else self.population * (g + 1)
+                for g, _, _ in self.curve]
+        return done, [e for _, _, e in self.curve]
+
 
 def individuals(run: RunResult, generation: int) -> int:
     """The individuals ``run`` had processed by the end of ``generation``: ``M (i + 1)`` for
@@ -552,8 +565,9 @@ def episode_effort(runs: Sequence[RunResult], z: float = Z) -> float:
     def spent(x: int) -> float:
         per_run = []
         for r in runs:
-            upto = [e for g, _, e in r.curve if individuals(r, g) <= x]
-            per_run.append(upto[-1] if upto else 0)
+            done, episodes = r.spending
+            k = bisect.bisect_right(done, x)  # the last point within x individuals
+            per_run.append(episodes[k - 1] if k else 0)
         return statistics.fmean(per_run)
     return _effort_at([solved_individuals(r) for r in runs], spent, z)
 

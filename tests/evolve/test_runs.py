@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from skillcompose import FSA, State, load_fsa, save_fsa
+from skillcompose import FSA, load_fsa, save_fsa
 from skillcompose.cli import main as skillcompose_main
 from skillcompose.evolve import CheckpointError, EvolutionConfig, EvolutionResult, RunDir, evolve
 from skillcompose.evolve.rundir import MAX_DRAWN_STATES
@@ -616,10 +616,7 @@ def test_a_picture_of_an_earlier_best_goes_when_the_best_is_too_large_to_draw(
     """``best.png`` never shows another FSA than ``best.yaml``: drawn for a small best,
     removed when a later best has more than MAX_DRAWN_STATES states."""
     def chain(n: int) -> FSA:
-        states = {f"s{i}": State("Wait", transitions={"success": f"s{i + 1}" if i + 1 < n
-                                                      else "success"})
-                  for i in range(n)}
-        return FSA(name="chain", start="s0", states=states, terminals=("success",))
+        return FSA.chain(["Wait"] * n)
 
     rundir = RunDir(tmp_path)
     rundir.plots([], chain(3))
