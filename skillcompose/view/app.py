@@ -61,7 +61,6 @@ __all__ = ["ViewerConfig", "build", "first_loading", "fsa_files", "live_files",
            "request_refusal", "task_refusal"]
 
 LIVE_REFRESH_S = 0.25
-LIVE_LIST_S = 1.0  # how often the live page looks for new live files
 REPLAY_TIMEOUT_S = 300.0  # the longest a replay's episode may take before its page fails
 MAX_FILES = 500
 MAX_LIST_DEPTH = 8  # how deep below the folder FSA and live files are looked for
@@ -500,7 +499,7 @@ def _live_page(config: ViewerConfig) -> None:
             cards.pop(gone)["card"].delete()
 
     def read() -> list[tuple[Path, dict[str, Any] | None]]:  # in a worker thread
-        if time.monotonic() - state["listed"] >= LIVE_LIST_S:  # a new file: once a second
+        if time.monotonic() - state["listed"] >= config.refresh:  # new files: each --refresh
             state["paths"], state["listed"] = live_files(config.root), time.monotonic()
         return [(p, read_live(p, config.root)) for p in state["paths"]]
 

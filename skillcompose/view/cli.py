@@ -12,7 +12,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from skillcompose.arguments import UsageError, module_or_file, setting, whole
+from skillcompose.arguments import UsageError, module_or_file, number, setting, whole
+
+from .trust import REFRESH_S
 
 __all__ = ["DEFAULT_PORT", "handle", "register_cli"]
 
@@ -64,6 +66,11 @@ def register_cli(subparsers: Any) -> None:
     p.add_argument("--allow-remote", action="store_true",
                    help="allow a --host beyond this machine (such as 0.0.0.0): anyone who "
                    "reaches it with the printed token sees what the viewer shows")
+    p.add_argument("--refresh", type=number(0.1, 3600.0), default=REFRESH_S,
+                   metavar="SECONDS",
+                   help="how often the runs page reads the run directories again and the "
+                   f"live page looks for new live files (default {REFRESH_S:g} s; "
+                   "longer for a folder of many runs on a slow disk)")
     p.add_argument("--token", action="store_true",
                    help="require a random access token (printed in the address) on "
                    "127.0.0.1 too; always required beyond this machine")
@@ -116,7 +123,7 @@ def handle(args: argparse.Namespace) -> int:
     label = str(path.parent if file is not None else path)
     build(ViewerConfig(root=root, file=file.resolve() if file else None, task=args.task,
                        settings=settings, label=label, token=token, remote=remote,
-                       port=args.port))
+                       port=args.port, refresh=args.refresh))
     url_host = f"[{args.host}]" if ":" in args.host else args.host
     page = ("/fsa" if file is not None else "/") + (f"?token={token}" if token else "")
     if remote:

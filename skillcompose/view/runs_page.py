@@ -23,10 +23,9 @@ from .common import error_text, header, safe, shown_path
 from .data import RunSummary, find_runs
 from .trust import ViewerConfig
 
-__all__ = ["COLOURS", "REFRESH_S", "best_note", "chart_options", "fmt", "run_row",
+__all__ = ["COLOURS", "best_note", "chart_options", "fmt", "run_row",
            "show_runs"]
 
-REFRESH_S = 1.0  # how often the runs page re-reads the run directories
 COLOURS = ("#2563eb", "#dc2626", "#059669", "#d97706", "#7c3aed", "#0891b2", "#db2777",
            "#65a30d", "#475569", "#ea580c")
 EXPLAINED = (
@@ -193,4 +192,4 @@ def show_runs(config: ViewerConfig) -> None:
             safe("runs", lambda: show(state["runs"], True))
 
     table.on_select(lambda _: reselect())
-    ui.timer(REFRESH_S, refresh)
+    ui.timer(config.refresh, refresh)  # re-read the run directories

@@ -31,9 +31,12 @@ from skillcompose.origins import inside, is_file_target, module_origins
 
 from .folder import OutsideFolder, resolve_below
 
-__all__ = ["MAX_ADDRESS_VALUE", "ViewerConfig", "address_problem", "checked_settings",
+__all__ = ["MAX_ADDRESS_VALUE", "REFRESH_S", "ViewerConfig", "address_problem", "checked_settings",
            "file_below", "request_refusal", "seed_of", "task_refusal"]
 
+REFRESH_S = 1.0
+"""Seconds between two listings of the viewer's folder by default (``--refresh``): the
+runs page reads the run directories again, the live page looks for new live files."""
 MAX_ADDRESS_VALUE = 4096  # the longest value of a page's address the viewer reads
 
 
@@ -49,6 +52,7 @@ class ViewerConfig:
     token: str | None = None  # the access token every request must carry (None: none)
     remote: bool = False  # it listens beyond loopback (--allow-remote)
     port: int = 0  # the port it listens on (names the token's cookie)
+    refresh: float = REFRESH_S  # seconds between two listings of the folder
 
 
 def address_problem(name: str, value: str) -> str | None:

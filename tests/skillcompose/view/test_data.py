@@ -156,6 +156,32 @@ def test_view_usage_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFi
         assert main(["view", str(tmp_path), "--port", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"--port {port}" in err and "in use" in err and "Traceback" not in err
+    for bad in ("0", "-1", "nan", "soon"):
+        with pytest.raises(SystemExit) as exc:
+            main(["view", str(tmp_path), "--refresh", bad])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert "--refresh" in err and "from 0.1 to 3600" in err and "Traceback" not in err
+        assert len(err.strip().splitlines()) <= 2  # usage line and the error
+
+
+def test_refresh_reaches_the_pages(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--refresh`` is how often the pages list the folder: it reaches the viewer's
+    configuration, and a viewer given none lists it once a second."""
+    from nicegui import ui
+
+    import skillcompose.view.app as app
+    from skillcompose.view.trust import ViewerConfig
+
+    built: list[ViewerConfig] = []
+    monkeypatch.setattr(app, "build", built.append)
+    monkeypatch.setattr(ui, "run", lambda **_: None)
+    for extra, expected in (([], 1.0), (["--refresh", "0.5"], 0.5), (["--refresh", "30"], 30.0)):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        assert main(["view", str(tmp_path), "--port", str(port), *extra]) == 0
+        assert built[-1].refresh == expected
 
 
 def test_core_does_not_import_the_viewer() -> None:
