@@ -45,9 +45,28 @@ def test_table_1_is_the_paper_preset_with_one_world_per_evaluation() -> None:
     assert cfg.trials == 1 and cfg.generations == 1633 and not cfg.require_holds
     ours = compare_paper.config_for(exp, "ours", None)
     assert ours.max_episodes == 1633 * 300 // 2 and ours.require_holds
+    whole = compare_paper.config_for(exp, "ours-paper-episodes", None)
+    assert whole.max_episodes == 1633 * 300 and whole.replace(max_episodes=None) == \
+        ours.replace(max_episodes=None)  # ours, with the paper's whole budget
     worlds = compare_paper.config_for(compare_paper.EXPERIMENTS["stacking"], "table1-worlds",
                                       None)
     assert worlds.max_episodes == 603 * 300 and worlds.trials is None
+
+
+def test_the_paper_budget_for_ours_runs_where_asked_and_sets_no_target() -> None:
+    """``ours, the paper's episodes`` runs on push-layered alone (no full comparison grows by
+    it), and the targets read the half-budget rows only."""
+    runs = {name for name, exp in compare_paper.EXPERIMENTS.items()
+            if "ours-paper-episodes" in exp.algorithms}
+    assert runs == {"push-layered"}
+    row = compare_paper.Row(
+        experiment="push-layered", algorithm="ours-paper-episodes", world="paper", seed=0,
+        solved=True, solved_by="holds", generations=100, episodes=400_000,
+        budget_episodes=489_900, wall_s=1.0, states=4, fresh_successes=1900,
+        fresh_episodes=2000, robot_successes=390, robot_episodes=395)
+    assert compare_paper._targets([row]) == []  # no "ours" rows: no target line
+    assert any("| push-layered | ours, the paper's episodes | 1/1 |" in line
+               for line in compare_paper._table([row], "paper"))
 
 
 def test_unknown_algorithms_and_worlds_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
