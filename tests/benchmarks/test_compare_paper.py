@@ -69,6 +69,37 @@ def test_the_paper_budget_for_ours_runs_where_asked_and_sets_no_target() -> None
                for line in compare_paper._table([row], "paper"))
 
 
+def _push_row(algorithm: str, seed: int, fresh: int, fsa: str = "") -> Any:
+    return compare_paper.Row(
+        experiment="push-layered", algorithm=algorithm, world="paper", seed=seed,
+        solved=False, solved_by="holds", generations=80, episodes=243_000,
+        budget_episodes=244_950, wall_s=1.0, states=3, fresh_successes=fresh,
+        fresh_episodes=2000, robot_successes=100, robot_episodes=395, fsa=fsa)
+
+
+def test_the_page_says_whether_the_paper_budget_closes_the_gap() -> None:
+    """Half the budget, all of it and the reference, pooled: the page says whether the
+    whole budget stays below the reference, and how many seeds exported the same FSA (the
+    same states, whatever the settings written beside them)."""
+    text = (ROOT / "examples" / "move_to_reach.fsa.yaml").read_text()
+    other = (ROOT / "docs" / "results" / "push_ceiling_staged.fsa.yaml").read_text()
+    assert compare_paper._same_fsa(text, "# another comment\n" + text)
+    assert not compare_paper._same_fsa(text, other) and not compare_paper._same_fsa(text, "")
+    half = [_push_row("ours", 0, 400, text), _push_row("ours", 1, 500, text)]
+    ref = [_push_row("reference", 0, 1800), _push_row("reference", 1, 1810)]
+    short = [_push_row("ours-paper-episodes", 0, 400, text),
+             _push_row("ours-paper-episodes", 1, 900, other)]
+    [line] = compare_paper._budget([*half, *ref, *short])
+    assert "32.5 %" in line and "22.5 %" in line  # 1300 and 900 of 4000
+    assert "1 of 2 seeds export the FSA they had at half the budget" in line
+    assert "stays below it" in line
+    close = [_push_row("ours-paper-episodes", 0, 1800, other),
+             _push_row("ours-paper-episodes", 1, 1810, other)]
+    [line] = compare_paper._budget([*half, *ref, *close])
+    assert "0 of 2 seeds" in line and "reaches it within the intervals" in line
+    assert compare_paper._budget([*half, *ref]) == []  # no whole-budget rows: no line
+
+
 def test_unknown_algorithms_and_worlds_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         compare_paper.main(["--algorithms", "genetic"])
