@@ -82,13 +82,13 @@ PAPER_REAL_ROBOT = {"push": (323, 395), "stacking": (20, 20)}
 ALGORITHMS = {"table1": "table 1", "table1-worlds": "table 1, the task's worlds",
               "ours": "ours", "ours-paper-episodes": "ours, the paper's episodes",
               "reference": "reference, not evolved"}
-RUN_BY_DEFAULT = ("table1", "table1-worlds", "ours", "reference")
-"""The algorithms an experiment runs unless it names its own (``ours-paper-episodes`` only
-where it says so: it asks whether the paper's whole budget lifts our preset, not a target)."""
 """The evolutionary algorithms compared: key (``--algorithms``) -> name in the report; and
 ``reference``, no algorithm: the experiment's hand-written or fitted FSA
 (``Experiment.reference``), measured on the same fresh worlds and PR2-model episodes as each
 seed's run, for what the skills allow and what the task's fitness gives it."""
+RUN_BY_DEFAULT = ("table1", "table1-worlds", "ours", "reference")
+"""The algorithms an experiment runs unless it names its own (``ours-paper-episodes`` only
+where it says so: it asks whether the paper's whole budget lifts our preset, not a target)."""
 
 
 @dataclass(frozen=True)
