@@ -432,14 +432,17 @@ class RunResult:
     # ``population`` every generation); a population that grows at restarts differs
 
     @cached_property
+    def processed(self) -> list[int]:
+        """The individuals processed by the end of each generation of ``sizes`` (their
+        running sum; empty with ``sizes``)."""
+        return list(accumulate(self.sizes))
+
+    @cached_property
     def spending(self) -> tuple[list[int], list[int]]:
         """The individuals processed (:func:`individuals`) and the episodes spent at each
         point of ``curve``, both never falling: computed once, as an effort's bootstrap asks
         for them thousands of times."""
-        total = list(accumulate(self.sizes))
-        done = [total[min(g, len(total) - 1)] if total else self.population * (g + 1)
-                for g, _, _ in self.curve]
-        return done, [e for _, _, e in self.curve]
+        return [individuals(self, g) for g, _, _ in self.curve], [e for _, _, e in self.curve]
 
 
 def individuals(run: RunResult, generation: int) -> int:
@@ -447,7 +450,7 @@ def individuals(run: RunResult, generation: int) -> int:
     a fixed population, the sum of the generations' sizes for one that grows."""
     if not run.sizes:
         return run.population * (generation + 1)
-    return sum(run.sizes[:generation + 1])
+    return run.processed[min(generation, len(run.processed) - 1)]
 
 
 def solved_individuals(run: RunResult) -> int | None:

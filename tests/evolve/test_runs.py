@@ -615,14 +615,11 @@ def test_a_picture_of_an_earlier_best_goes_when_the_best_is_too_large_to_draw(
         tmp_path: Path) -> None:
     """``best.png`` never shows another FSA than ``best.yaml``: drawn for a small best,
     removed when a later best has more than MAX_DRAWN_STATES states."""
-    def chain(n: int) -> FSA:
-        return FSA.chain(["Wait"] * n)
-
     rundir = RunDir(tmp_path)
-    rundir.plots([], chain(3))
+    rundir.plots([], FSA.chain(["Wait"] * 3))
     assert rundir.best_png.stat().st_size > 0
-    rundir.plots([], chain(MAX_DRAWN_STATES + 1))
+    rundir.plots([], FSA.chain(["Wait"] * (MAX_DRAWN_STATES + 1)))
     assert not rundir.best_png.exists()
-    rundir.plots([], chain(MAX_DRAWN_STATES + 1))  # nothing to remove: no error
-    rundir.plots([], chain(4))
+    rundir.plots([], FSA.chain(["Wait"] * (MAX_DRAWN_STATES + 1)))  # nothing to remove
+    rundir.plots([], FSA.chain(["Wait"] * 4))
     assert rundir.best_png.exists()

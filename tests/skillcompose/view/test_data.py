@@ -21,7 +21,7 @@ from skillcompose.view.data import find_runs, mermaid, read_fsa, read_history, r
 from skillcompose.view.episode import run_episode
 from skillcompose.view.live import LivePublisher, read_live
 
-from .conftest import REPO, child_env
+from .conftest import REPO, child_env, free_port
 
 POUR = REPO / "examples" / "pour_water_reference.fsa.yaml"
 
@@ -177,10 +177,7 @@ def test_refresh_reaches_the_pages(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     monkeypatch.setattr(app, "build", built.append)
     monkeypatch.setattr(ui, "run", lambda **_: None)
     for extra, expected in (([], 1.0), (["--refresh", "0.5"], 0.5), (["--refresh", "30"], 30.0)):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        assert main(["view", str(tmp_path), "--port", str(port), *extra]) == 0
+        assert main(["view", str(tmp_path), "--port", str(free_port()), *extra]) == 0
         assert built[-1].refresh == expected
 
 
